@@ -1,0 +1,2 @@
+//! Library side of the `eemp` command: plotting helpers shared by its subcommands.
+pub mod plots;

@@ -1,0 +1,791 @@
+//! PNG plots: stacked line panels, gait diagrams and heat maps.
+//!
+//! Text uses DejaVu Sans embedded from the `dejavu` crate and registered with plotters'
+//! `ab_glyph` backend on first use, so plots render on machines without any system fonts.
+
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
+use plotters::style::{register_font, FontStyle};
+use std::error::Error;
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+/// Width in pixels of every PNG written here.
+pub const WIDTH: u32 = 1200;
+const PANEL_H: u32 = 300;
+const TITLE_H: u32 = 50;
+const LEGEND_W: u32 = 210;
+const COLORBAR_W: u32 = 170;
+const FONT: &str = "sans-serif";
+const NAN_GREY: RGBColor = RGBColor(176, 176, 176);
+const STANCE: RGBColor = RGBColor(31, 119, 180);
+
+/// A plot could not be written; always names the file it was writing.
+#[derive(Debug, thiserror::Error)]
+pub enum PlotError {
+    #[error("cannot plot {}: the embedded font failed to load", path.display())]
+    Font { path: PathBuf },
+    #[error("cannot plot {}: {message}", path.display())]
+    Draw { path: PathBuf, message: String },
+}
+
+/// One line of a panel. Points with a non-finite coordinate are gaps in the line.
+#[derive(Debug, Clone, Default)]
+pub struct Series {
+    pub label: String,
+    pub x: Vec<f64>,
+    pub y: Vec<f64>,
+}
+
+/// One chart in [`line_panels`]. `markers` are vertical dashed red lines at an x position,
+/// named in the legend (repeated labels are listed once).
+#[derive(Debug, Clone, Default)]
+pub struct Panel {
+    pub title: String,
+    pub x_label: String,
+    pub y_label: String,
+    pub series: Vec<Series>,
+    pub markers: Vec<(f64, String)>,
+}
+
+/// One small map in [`heatmap_grid`]; `z[iy][ix]` as for [`heatmap`].
+#[derive(Debug, Clone, Default)]
+pub struct HeatmapCell {
+    pub title: String,
+    pub x: Vec<f64>,
+    pub y: Vec<f64>,
+    pub z: Vec<Vec<f64>>,
+}
+
+type Area<'a> = DrawingArea<BitMapBackend<'a>, Shift>;
+type DrawResult<T = ()> = Result<T, Box<dyn Error>>;
+
+/// Panels stacked vertically in one PNG (1200 px wide, 300 px per panel) under `title`.
+pub fn line_panels(path: &Path, title: &str, panels: &[Panel]) -> Result<(), PlotError> {
+    let height = TITLE_H + PANEL_H * panels.len().max(1) as u32;
+    render(path, (WIDTH, height), |root| {
+        let body = root.titled(title, title_style())?;
+        if panels.is_empty() {
+            return no_data(&body);
+        }
+        for (panel, area) in panels.iter().zip(body.split_evenly((panels.len(), 1))) {
+            draw_panel(&area, panel)?;
+        }
+        Ok(())
+    })
+}
+
+/// Gait diagram: one lane per leg (top to bottom in `leg_names` order), filled where the
+/// leg is in stance. Sample `i` covers `time[i]..time[i + 1]`.
+pub fn gait_diagram(
+    path: &Path,
+    title: &str,
+    time: &[f64],
+    stance: &[[bool; 4]],
+    leg_names: [&str; 4],
+) -> Result<(), PlotError> {
+    render(path, (WIDTH, 360), |root| {
+        let body = root.titled(title, title_style())?;
+        let (chart_area, legend) = body.split_horizontally(WIDTH - LEGEND_W);
+        let (t0, t1) = axis_range(time.iter().copied());
+        let mut chart = ChartBuilder::on(&chart_area)
+            .margin(10)
+            .x_label_area_size(45)
+            .y_label_area_size(90)
+            .build_cartesian_2d(t0..t1, -0.5f64..3.5f64)?;
+        chart
+            .configure_mesh()
+            .disable_y_mesh()
+            .y_labels(8)
+            .y_label_formatter(&|v| lane_name(*v, &leg_names))
+            .x_desc("time [s]")
+            .label_style((FONT, 14))
+            .axis_desc_style((FONT, 16))
+            .draw()?;
+        for leg in 0..4 {
+            let lane = 3.0 - leg as f64;
+            let (lo, hi) = (lane - 0.35, lane + 0.35);
+            let outline = Rectangle::new([(t0, lo), (t1, hi)], BLACK.mix(0.3));
+            chart.draw_series([outline])?;
+            let bars = stance_runs(time, stance, leg)
+                .into_iter()
+                .map(|(a, b)| Rectangle::new([(a, lo), (b, hi)], STANCE.filled()));
+            chart.draw_series(bars)?;
+        }
+        draw_legend(&legend, &[("stance".into(), Swatch::Bar(STANCE))], 45)
+    })
+}
+
+/// Heat map of `z[iy][ix]` over cell centres `x`, `y`, with a colour bar labelled `z_label`.
+/// Non-finite cells are grey and listed as "fell / no data" under the colour bar.
+#[allow(clippy::too_many_arguments)]
+pub fn heatmap(
+    path: &Path,
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    z_label: &str,
+    x: &[f64],
+    y: &[f64],
+    z: &[Vec<f64>],
+) -> Result<(), PlotError> {
+    let zr = padded_range(z.iter().flatten().copied(), 0.0);
+    render(path, (WIDTH, 800), |root| {
+        let body = root.titled(title, title_style())?;
+        let (map, bar) = body.split_horizontally(WIDTH - COLORBAR_W);
+        let labels = (x_label, y_label, 16);
+        let grey = draw_map(&map, "", labels, x, y, z, zr)?;
+        draw_colorbar(&bar, z_label, zr, grey)
+    })
+}
+
+/// Small heat maps in a grid `cols` wide, all on one colour scale with one colour bar.
+pub fn heatmap_grid(
+    path: &Path,
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    z_label: &str,
+    cells: &[HeatmapCell],
+    cols: usize,
+) -> Result<(), PlotError> {
+    let cols = cols.clamp(1, cells.len().max(1));
+    let rows = cells.len().div_ceil(cols).max(1);
+    let cell_h = ((WIDTH - COLORBAR_W) / cols as u32 * 4 / 5).clamp(260, 500);
+    let zr = padded_range(
+        cells.iter().flat_map(|c| c.z.iter().flatten().copied()),
+        0.0,
+    );
+    render(path, (WIDTH, TITLE_H + cell_h * rows as u32), |root| {
+        let body = root.titled(title, title_style())?;
+        let (grid, bar) = body.split_horizontally(WIDTH - COLORBAR_W);
+        if cells.is_empty() {
+            return no_data(&grid);
+        }
+        let mut grey = false;
+        for (cell, area) in cells.iter().zip(grid.split_evenly((rows, cols))) {
+            let (x, y, z) = (&cell.x, &cell.y, &cell.z);
+            grey |= draw_map(&area, &cell.title, (x_label, y_label, 13), x, y, z, zr)?;
+        }
+        draw_colorbar(&bar, z_label, zr, grey)
+    })
+}
+
+fn render(
+    path: &Path,
+    size: (u32, u32),
+    draw: impl FnOnce(&Area) -> DrawResult,
+) -> Result<(), PlotError> {
+    static FONT_OK: OnceLock<bool> = OnceLock::new();
+    let font_ok = *FONT_OK.get_or_init(|| {
+        register_font(FONT, FontStyle::Normal, dejavu::sans::regular()).is_ok()
+            && register_font(FONT, FontStyle::Bold, dejavu::sans::bold()).is_ok()
+    });
+    if !font_ok {
+        return Err(PlotError::Font { path: path.into() });
+    }
+    let draw_err = |e: Box<dyn Error>| PlotError::Draw {
+        path: path.into(),
+        message: e.to_string(),
+    };
+    // plotters only reports a bad path when it saves, after all the drawing; fail early.
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| draw_err(e.into()))?;
+    }
+    let root = BitMapBackend::new(path, size).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| draw_err(e.into()))?;
+    draw(&root).map_err(draw_err)?;
+    root.present().map_err(|e| draw_err(e.into()))
+}
+
+fn title_style() -> TextStyle<'static> {
+    (FONT, 26).into_font().style(FontStyle::Bold).into()
+}
+
+fn no_data(area: &Area) -> DrawResult {
+    let (w, h) = area.dim_in_pixel();
+    let style = TextStyle::from((FONT, 20)).pos(Pos::new(HPos::Center, VPos::Center));
+    area.draw_text("no data", &style, (w as i32 / 2, h as i32 / 2))?;
+    Ok(())
+}
+
+fn draw_panel(area: &Area, panel: &Panel) -> DrawResult {
+    let (chart_area, legend) = area.split_horizontally(WIDTH - LEGEND_W);
+    let xs = panel
+        .series
+        .iter()
+        .flat_map(|s| finite_points(s).map(|p| p.0));
+    let xr = axis_range(xs.chain(panel.markers.iter().map(|m| m.0)));
+    let yr = axis_range(
+        panel
+            .series
+            .iter()
+            .flat_map(|s| finite_points(s).map(|p| p.1)),
+    );
+    let mut chart = ChartBuilder::on(&chart_area)
+        .caption(&panel.title, (FONT, 18))
+        .margin(8)
+        .x_label_area_size(42)
+        .y_label_area_size(80)
+        .build_cartesian_2d(xr.0..xr.1, yr.0..yr.1)?;
+    chart
+        .configure_mesh()
+        .x_desc(panel.x_label.as_str())
+        .y_desc(panel.y_label.as_str())
+        .label_style((FONT, 13))
+        .axis_desc_style((FONT, 15))
+        .light_line_style(BLACK.mix(0.05))
+        .draw()?;
+    let mut entries = Vec::new();
+    let drawn = panel
+        .series
+        .iter()
+        .filter(|s| finite_points(s).next().is_some());
+    for (i, series) in drawn.enumerate() {
+        let color = palette(i);
+        for seg in segments(series) {
+            if let [p] = seg[..] {
+                chart.draw_series([Circle::new(p, 2, color.filled())])?;
+            } else {
+                chart.draw_series(LineSeries::new(seg, color.stroke_width(2)))?;
+            }
+        }
+        entries.push((series.label.clone(), Swatch::Line(color)));
+    }
+    for (x, label) in panel.markers.iter().filter(|m| m.0.is_finite()) {
+        let line = [(*x, yr.0), (*x, yr.1)];
+        chart.draw_series(DashedLineSeries::new(line, 8, 6, RED.stroke_width(2)))?;
+        if !entries
+            .iter()
+            .any(|(l, s)| l == label && matches!(s, Swatch::Dashed(_)))
+        {
+            entries.push((label.clone(), Swatch::Dashed(RED)));
+        }
+    }
+    draw_legend(&legend, &entries, 36)
+}
+
+/// Draws the heat map into `area`; returns whether any cell was grey (no data).
+fn draw_map(
+    area: &Area,
+    title: &str,
+    (x_label, y_label, text): (&str, &str, u32),
+    x: &[f64],
+    y: &[f64],
+    z: &[Vec<f64>],
+    zr: (f64, f64),
+) -> DrawResult<bool> {
+    let (ex, ey) = (cell_edges(x), cell_edges(y));
+    let span = |e: &[(usize, f64, f64)]| match (e.first(), e.last()) {
+        (Some(a), Some(b)) => (a.1.min(b.2), a.1.max(b.2)),
+        _ => (0.0, 1.0),
+    };
+    let (xr, yr) = (span(&ex), span(&ey));
+    let mut builder = ChartBuilder::on(area);
+    if !title.is_empty() {
+        builder.caption(title, (FONT, text + 2));
+    }
+    let mut chart = builder
+        .margin(8)
+        .x_label_area_size(text * 3)
+        .y_label_area_size(text * 5)
+        .build_cartesian_2d(xr.0..xr.1, yr.0..yr.1)?;
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .x_desc(x_label)
+        .y_desc(y_label)
+        .label_style((FONT, text - 2))
+        .axis_desc_style((FONT, text))
+        .draw()?;
+    let mut grey = ex.is_empty() || ey.is_empty();
+    let mut rects = Vec::with_capacity(ex.len() * ey.len());
+    for &(iy, y0, y1) in &ey {
+        for &(ix, x0, x1) in &ex {
+            let v = z.get(iy).and_then(|row| row.get(ix)).copied();
+            let color = match v.filter(|v| v.is_finite()) {
+                Some(v) => colormap((v - zr.0) / (zr.1 - zr.0)),
+                None => {
+                    grey = true;
+                    NAN_GREY
+                }
+            };
+            rects.push(Rectangle::new([(x0, y0), (x1, y1)], color.filled()));
+        }
+    }
+    chart.draw_series(rects)?;
+    Ok(grey)
+}
+
+fn draw_colorbar(area: &Area, z_label: &str, zr: (f64, f64), grey: bool) -> DrawResult {
+    let (bar_area, nan_area) = area.split_vertically(area.dim_in_pixel().1 as i32 - 70);
+    let mut chart = ChartBuilder::on(&bar_area)
+        .margin_top(30)
+        .margin_bottom(10)
+        .margin_left(10)
+        .right_y_label_area_size(110)
+        .build_cartesian_2d(0.0f64..1.0f64, zr.0..zr.1)?;
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .disable_x_axis()
+        .y_desc(z_label)
+        .label_style((FONT, 13))
+        .axis_desc_style((FONT, 15))
+        .draw()?;
+    let steps = 200;
+    let dz = (zr.1 - zr.0) / steps as f64;
+    chart.draw_series((0..steps).map(|i| {
+        let z0 = zr.0 + dz * i as f64;
+        let color = colormap((i as f64 + 0.5) / steps as f64);
+        Rectangle::new([(0.0, z0), (1.0, z0 + dz)], color.filled())
+    }))?;
+    if grey {
+        draw_legend(
+            &nan_area,
+            &[("fell / no data".into(), Swatch::Cell(NAN_GREY))],
+            10,
+        )?;
+    }
+    Ok(())
+}
+
+enum Swatch {
+    Line(RGBColor),
+    Dashed(RGBColor),
+    Bar(RGBColor),
+    Cell(RGBColor),
+}
+
+/// Legends live beside the chart so they never hide data.
+fn draw_legend(area: &Area, entries: &[(String, Swatch)], top: i32) -> DrawResult {
+    let (w, h) = area.dim_in_pixel();
+    let row = ((h as i32 - top - 10) / entries.len().max(1) as i32).clamp(8, 22);
+    let size = (row - 6).clamp(9, 14);
+    let style = TextStyle::from((FONT, size)).pos(Pos::new(HPos::Left, VPos::Center));
+    let max_w = w.saturating_sub(56);
+    for (i, (label, swatch)) in entries.iter().enumerate() {
+        let y = top + row * i as i32 + row / 2;
+        let (a, b) = ((8, y), (38, y));
+        match swatch {
+            Swatch::Line(c) => area.draw(&PathElement::new([a, b], c.stroke_width(3)))?,
+            Swatch::Dashed(c) => {
+                for x in [8, 20, 32] {
+                    area.draw(&PathElement::new([(x, y), (x + 7, y)], c.stroke_width(2)))?;
+                }
+            }
+            Swatch::Bar(c) | Swatch::Cell(c) => {
+                let half = (row / 3).max(3);
+                let corners = [(8, y - half), (38, y + half)];
+                area.draw(&Rectangle::new(corners, c.filled()))?;
+            }
+        }
+        let mut text = label.clone();
+        while text.chars().count() > 1 && area.estimate_text_size(&text, &style)?.0 > max_w {
+            text.pop();
+            text.pop();
+            text.push('…');
+        }
+        area.draw_text(&text, &style, (46, y))?;
+    }
+    Ok(())
+}
+
+fn lane_name(v: f64, names: &[&str; 4]) -> String {
+    let lane = v.round();
+    if (v - lane).abs() > 1e-6 || !(0.0..=3.0).contains(&lane) {
+        return String::new();
+    }
+    names[3 - lane as usize].to_string()
+}
+
+/// Stance intervals of one leg; a non-finite time ends the current interval.
+fn stance_runs(time: &[f64], stance: &[[bool; 4]], leg: usize) -> Vec<(f64, f64)> {
+    let n = time.len().min(stance.len());
+    let mut runs = Vec::new();
+    let mut start: Option<f64> = None;
+    for i in 0..n {
+        let t = time[i];
+        let on = t.is_finite() && stance[i][leg];
+        match (start, on) {
+            (None, true) => start = Some(t),
+            (Some(s), false) => {
+                runs.push((s, if t.is_finite() { t } else { time[i - 1] }));
+                start = None;
+            }
+            _ => {}
+        }
+    }
+    if let Some(s) = start {
+        runs.push((s, time[n - 1]));
+    }
+    runs
+}
+
+fn finite_points(s: &Series) -> impl Iterator<Item = (f64, f64)> + '_ {
+    let pts = s.x.iter().zip(&s.y).map(|(&x, &y)| (x, y));
+    pts.filter(|(x, y)| x.is_finite() && y.is_finite())
+}
+
+/// Runs of consecutive finite points, so gaps in the data stay gaps in the line.
+fn segments(s: &Series) -> Vec<Vec<(f64, f64)>> {
+    let mut out = vec![Vec::new()];
+    for (&x, &y) in s.x.iter().zip(&s.y) {
+        if x.is_finite() && y.is_finite() {
+            if let Some(seg) = out.last_mut() {
+                seg.push((x, y));
+            }
+        } else if out.last().is_some_and(|seg| !seg.is_empty()) {
+            out.push(Vec::new());
+        }
+    }
+    out.retain(|seg| !seg.is_empty());
+    out
+}
+
+fn axis_range(values: impl Iterator<Item = f64>) -> (f64, f64) {
+    padded_range(values, 0.05)
+}
+
+/// Finite min..max widened by `margin` of the span; never empty, so plotters always gets
+/// a usable range even for constant or missing data.
+fn padded_range(values: impl Iterator<Item = f64>, margin: f64) -> (f64, f64) {
+    let (lo, hi) = values
+        .filter(|v| v.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+            (lo.min(v), hi.max(v))
+        });
+    if lo > hi {
+        return (0.0, 1.0);
+    }
+    let span = hi - lo;
+    let pad = if span > 0.0 {
+        margin * span
+    } else {
+        (0.1 * lo.abs()).max(0.5)
+    };
+    if !span.is_finite() || !(lo - pad).is_finite() || !(hi + pad).is_finite() {
+        return (-f64::MAX / 4.0, f64::MAX / 4.0);
+    }
+    (lo - pad, hi + pad)
+}
+
+/// (index, lower edge, upper edge) of each finite grid value: edges half-way to the neighbours.
+fn cell_edges(v: &[f64]) -> Vec<(usize, f64, f64)> {
+    let pts: Vec<(usize, f64)> = v
+        .iter()
+        .copied()
+        .enumerate()
+        .filter(|p| p.1.is_finite())
+        .collect();
+    (0..pts.len())
+        .map(|k| {
+            let c = pts[k].1;
+            let half = |o: Option<&(usize, f64)>| o.map(|p| (p.1 - c) / 2.0);
+            let up = half(pts.get(k + 1));
+            let down = half(k.checked_sub(1).and_then(|j| pts.get(j)));
+            let up = up.or(down.map(|d| -d)).unwrap_or(0.5);
+            let down = down.unwrap_or(-up);
+            (pts[k].0, c + down, c + up)
+        })
+        .collect()
+}
+
+fn palette(i: usize) -> RGBColor {
+    // Tableau colours without red, which is reserved for the marker lines.
+    const P: [RGBColor; 9] = [
+        RGBColor(31, 119, 180),
+        RGBColor(255, 127, 14),
+        RGBColor(44, 160, 44),
+        RGBColor(148, 103, 189),
+        RGBColor(140, 86, 75),
+        RGBColor(227, 119, 194),
+        RGBColor(127, 127, 127),
+        RGBColor(188, 189, 34),
+        RGBColor(23, 190, 207),
+    ];
+    P.get(i).copied().unwrap_or_else(|| {
+        let (r, g, b) = HSLColor((i as f64 * 0.618_034).fract(), 0.7, 0.4).rgb();
+        RGBColor(r, g, b)
+    })
+}
+
+/// Viridis, sampled at five stops and interpolated linearly.
+fn colormap(t: f64) -> RGBColor {
+    const STOPS: [(f64, f64, f64); 5] = [
+        (68.0, 1.0, 84.0),
+        (59.0, 82.0, 139.0),
+        (33.0, 145.0, 140.0),
+        (94.0, 201.0, 98.0),
+        (253.0, 231.0, 37.0),
+    ];
+    let s = if t.is_finite() {
+        t.clamp(0.0, 1.0) * 4.0
+    } else {
+        0.0
+    };
+    let i = (s.floor() as usize).min(3);
+    let f = s - i as f64;
+    let (a, b) = (STOPS[i], STOPS[i + 1]);
+    let mix = |p: f64, q: f64| (p + (q - p) * f).round() as u8;
+    RGBColor(mix(a.0, b.0), mix(a.1, b.1), mix(a.2, b.2))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn out_dir(test: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("eemp-plots-{}-{test}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        dir
+    }
+
+    /// Checks the PNG signature and IHDR width, then removes the folder unless
+    /// EEMP_KEEP_PLOTS is set (to look at the pictures).
+    fn assert_png(path: &Path) {
+        let bytes = std::fs::read(path).unwrap();
+        assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n", "{}", path.display());
+        assert_eq!(&bytes[12..16], b"IHDR");
+        let width = u32::from_be_bytes(bytes[16..20].try_into().unwrap());
+        assert_eq!(width, WIDTH);
+    }
+
+    fn done(dir: &Path) {
+        if std::env::var_os("EEMP_KEEP_PLOTS").is_none() {
+            let _ = std::fs::remove_dir_all(dir);
+        }
+    }
+
+    fn series(label: &str, f: impl Fn(f64) -> f64) -> Series {
+        let x: Vec<f64> = (0..500).map(|i| i as f64 * 0.01).collect();
+        let y = x.iter().map(|&t| f(t)).collect();
+        Series {
+            label: label.into(),
+            x,
+            y,
+        }
+    }
+
+    fn panel(title: &str, series: Vec<Series>) -> Panel {
+        let (x_label, y_label) = ("time [s]".into(), "value [m]".into());
+        Panel {
+            title: title.into(),
+            x_label,
+            y_label,
+            series,
+            markers: vec![],
+        }
+    }
+
+    #[test]
+    fn line_panels_writes_png_with_markers_gaps_and_constants() {
+        let dir = out_dir("line_panels");
+        let mut gappy = series("with NaN gap", |t| (3.0 * t).sin());
+        gappy.y[100..150].fill(f64::NAN);
+        gappy.x[300] = f64::INFINITY;
+        let mut first = panel(
+            "base height",
+            vec![series("z", |t| 0.3 + 0.01 * t.sin()), gappy],
+        );
+        first.markers = vec![
+            (1.0, "push".into()),
+            (3.0, "push".into()),
+            (4.0, "land".into()),
+        ];
+        let many = (0..12)
+            .map(|k| series(&format!("joint {k}"), move |t| t * k as f64))
+            .collect();
+        let panels = [
+            first,
+            panel("constant", vec![series("zero torque", |_| 0.0)]),
+            panel("twelve joints", many),
+            panel(
+                "empty",
+                vec![series("nothing", |_| f64::NAN), Series::default()],
+            ),
+        ];
+        let path = dir.join("panels.png");
+        line_panels(&path, "Walk 0.5 m/s", &panels).unwrap();
+        assert_png(&path);
+        line_panels(&dir.join("none.png"), "no panels", &[]).unwrap();
+        assert_png(&dir.join("none.png"));
+        done(&dir);
+    }
+
+    #[test]
+    fn gait_diagram_writes_png() {
+        let dir = out_dir("gait");
+        let time: Vec<f64> = (0..400).map(|i| i as f64 * 0.005).collect();
+        let stance: Vec<[bool; 4]> = time
+            .iter()
+            .map(|&t| {
+                let phase = (t / 0.5).fract();
+                let a = phase < 0.6;
+                let b = !(0.5..0.9).contains(&phase);
+                [a, b, b, a]
+            })
+            .collect();
+        let path = dir.join("gait.png");
+        gait_diagram(&path, "Trot gait", &time, &stance, ["FL", "FR", "RL", "RR"]).unwrap();
+        assert_png(&path);
+        let mut bad_time = time.clone();
+        bad_time[10] = f64::NAN;
+        let short = &stance[..5];
+        gait_diagram(
+            &dir.join("odd.png"),
+            "odd",
+            &bad_time,
+            short,
+            ["a", "b", "c", "d"],
+        )
+        .unwrap();
+        gait_diagram(
+            &dir.join("empty.png"),
+            "empty",
+            &[],
+            &[],
+            ["a", "b", "c", "d"],
+        )
+        .unwrap();
+        assert_png(&dir.join("empty.png"));
+        done(&dir);
+    }
+
+    #[test]
+    fn heatmap_writes_png_with_nan_cells() {
+        let dir = out_dir("heatmap");
+        let x: Vec<f64> = (0..20).map(|i| i as f64 * 0.1).collect();
+        let y: Vec<f64> = (0..15).map(|i| -0.7 + i as f64 * 0.1).collect();
+        let mut z: Vec<Vec<f64>> = y
+            .iter()
+            .map(|&b| x.iter().map(|&a| a * a - b).collect())
+            .collect();
+        z[3][4] = f64::NAN;
+        z[14].truncate(10);
+        let path = dir.join("heatmap.png");
+        heatmap(
+            &path,
+            "Max speed",
+            "kp [-]",
+            "kd [-]",
+            "speed [m/s]",
+            &x,
+            &y,
+            &z,
+        )
+        .unwrap();
+        assert_png(&path);
+        let nan = vec![vec![f64::NAN; 2]; 2];
+        heatmap(
+            &dir.join("nan.png"),
+            "all NaN",
+            "x",
+            "y",
+            "z",
+            &[0.0, 1.0],
+            &[1.0, 2.0],
+            &nan,
+        )
+        .unwrap();
+        heatmap(
+            &dir.join("empty.png"),
+            "empty",
+            "x",
+            "y",
+            "z",
+            &[],
+            &[],
+            &[],
+        )
+        .unwrap();
+        assert_png(&dir.join("empty.png"));
+        done(&dir);
+    }
+
+    #[test]
+    fn heatmap_grid_writes_png_with_shared_scale() {
+        let dir = out_dir("heatmap_grid");
+        let cells: Vec<HeatmapCell> = (0..5)
+            .map(|k| {
+                let x: Vec<f64> = (0..10).map(|i| i as f64).collect();
+                let y: Vec<f64> = (0..8).map(|i| i as f64 * 0.5).collect();
+                let mut z: Vec<Vec<f64>> = y
+                    .iter()
+                    .map(|&b| x.iter().map(|&a| a + b * k as f64).collect())
+                    .collect();
+                z[0][0] = f64::NAN;
+                HeatmapCell {
+                    title: format!("payload {k} kg"),
+                    x,
+                    y,
+                    z,
+                }
+            })
+            .collect();
+        let path = dir.join("grid.png");
+        heatmap_grid(
+            &path,
+            "Speed sweep",
+            "kp [-]",
+            "kd [-]",
+            "speed [m/s]",
+            &cells,
+            3,
+        )
+        .unwrap();
+        assert_png(&path);
+        heatmap_grid(&dir.join("empty.png"), "none", "x", "y", "z", &[], 0).unwrap();
+        assert_png(&dir.join("empty.png"));
+        let odd = [HeatmapCell {
+            title: "empty cell".into(),
+            ..Default::default()
+        }];
+        heatmap_grid(&dir.join("odd.png"), "odd", "x", "y", "z", &odd, 5).unwrap();
+        done(&dir);
+    }
+
+    #[test]
+    fn unwritable_path_error_names_the_path() {
+        let dir = out_dir("unwritable");
+        let file = dir.join("a-file");
+        std::fs::write(&file, b"x").unwrap();
+        let path = file.join("plot.png");
+        let shown = path.display().to_string();
+        let errors = [
+            line_panels(&path, "t", &[panel("p", vec![series("s", |t| t)])]),
+            gait_diagram(
+                &path,
+                "t",
+                &[0.0, 1.0],
+                &[[true; 4]; 2],
+                ["a", "b", "c", "d"],
+            ),
+            heatmap(&path, "t", "x", "y", "z", &[0.0], &[0.0], &[vec![1.0]]),
+            heatmap_grid(&path, "t", "x", "y", "z", &[], 2),
+        ];
+        for result in errors {
+            let message = result.unwrap_err().to_string();
+            assert!(message.contains(&shown), "{message}");
+        }
+        done(&dir);
+    }
+
+    #[test]
+    fn ranges_are_never_empty() {
+        assert_eq!(axis_range([f64::NAN].into_iter()), (0.0, 1.0));
+        let (lo, hi) = axis_range([2.0, 2.0].into_iter());
+        assert!(lo < 2.0 && hi > 2.0);
+        let (lo, hi) = axis_range([0.0, 10.0, f64::INFINITY].into_iter());
+        assert!((lo + 0.5).abs() < 1e-12 && (hi - 10.5).abs() < 1e-12);
+        assert_eq!(
+            cell_edges(&[0.0, 1.0, 3.0]),
+            vec![(0, -0.5, 0.5), (1, 0.5, 2.0), (2, 2.0, 4.0)]
+        );
+        assert_eq!(
+            segments(&series("s", |t| if t < 1.0 { t } else { f64::NAN })).len(),
+            1
+        );
+    }
+}

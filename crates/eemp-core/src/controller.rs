@@ -1,0 +1,218 @@
+//! One control step, top to bottom: plan in → MPC (at its own rate) → leg torques out.
+//!
+//! The plan comes from the EEMP planner when walking, or from a body-motion profile when
+//! standing; the controller does not care which.
+
+use crate::body_reference::BodyReference;
+use crate::body_state::RobotState;
+use crate::config_error::{check_range, ConfigError};
+use crate::convex_mpc::{ConvexMpc, MpcConfig, MpcInput, MpcStatus};
+use crate::kinematics::LegKinematics;
+use crate::leg::{Leg, LegMap};
+use crate::leg_control::{
+    clamp_torque, stance_torque, swing_torque, DynamicsModel, FootMeasurement, FootReference,
+    SwingGains,
+};
+use crate::robot::RobotConfig;
+use nalgebra::Vector3;
+use serde::{Deserialize, Serialize};
+
+/// What a planner hands the controller at every control step.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Plan {
+    /// Legs commanded to stance now (C_ref at this instant).
+    pub stance: LegMap<bool>,
+    /// Swing references (body frame) for legs not in stance.
+    pub swing: LegMap<Option<FootReference>>,
+    /// Body reference now (for tracking metrics).
+    pub body_now: BodyReference,
+    /// Body reference at the end of each MPC step.
+    pub body_horizon: Vec<BodyReference>,
+    /// Foot positions (world) during each MPC step.
+    pub feet_horizon_world: Vec<LegMap<Vector3<f64>>>,
+    /// Contact schedule C_ref over the MPC horizon.
+    pub contacts_horizon: Vec<LegMap<bool>>,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ControllerConfig {
+    pub mpc: MpcConfig,
+    pub swing: SwingGains,
+    /// Time between MPC solves, s; a change of the stance set triggers an extra solve.
+    pub mpc_period_s: f64,
+}
+
+impl Default for ControllerConfig {
+    fn default() -> Self {
+        ControllerConfig {
+            mpc: MpcConfig::default(),
+            swing: SwingGains::default(),
+            mpc_period_s: 0.02,
+        }
+    }
+}
+
+impl ControllerConfig {
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        self.mpc.validate()?;
+        self.swing.validate()?;
+        check_range("controller.mpc_period_s", self.mpc_period_s, 0.001, 0.1)
+    }
+}
+
+/// Statistics of one MPC solve, for logs and summaries.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MpcEvent {
+    pub status: MpcStatus,
+    pub solve_time_s: f64,
+    pub qp_size: (usize, usize),
+}
+
+/// What one control step produced.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ControlOutput {
+    /// Joint torques, clamped to the motor limit, N·m.
+    pub torques: LegMap<Vector3<f64>>,
+    /// Ground-reaction forces in use (world frame), N.
+    pub forces_world: LegMap<Vector3<f64>>,
+    /// Set when the MPC was solved in this step.
+    pub mpc_event: Option<MpcEvent>,
+}
+
+pub struct LocomotionController {
+    config: ControllerConfig,
+    kinematics: LegKinematics,
+    mpc: ConvexMpc,
+    torque_limit_nm: f64,
+    forces_world: LegMap<Vector3<f64>>,
+    last_solve_time_s: Option<f64>,
+    last_stance: LegMap<bool>,
+}
+
+impl LocomotionController {
+    pub fn new(robot: &RobotConfig, config: ControllerConfig) -> Result<Self, ConfigError> {
+        config.validate()?;
+        let body = robot.composite_body(&robot.standing_pose());
+        Ok(LocomotionController {
+            kinematics: LegKinematics::new(robot),
+            mpc: ConvexMpc::new(config.mpc.clone(), body)?,
+            torque_limit_nm: robot.leg.torque_limit_nm,
+            forces_world: LegMap::splat(Vector3::zeros()),
+            last_solve_time_s: None,
+            last_stance: LegMap::splat(false),
+            config,
+        })
+    }
+
+    pub fn config(&self) -> &ControllerConfig {
+        &self.config
+    }
+
+    /// `clock_s` is the controller's own clock (used for the MPC rate), s.
+    pub fn update(
+        &mut self,
+        clock_s: f64,
+        state: &RobotState,
+        plan: &Plan,
+        dynamics: &impl DynamicsModel,
+    ) -> ControlOutput {
+        let due = match self.last_solve_time_s {
+            None => true,
+            Some(t) => {
+                clock_s - t >= self.config.mpc_period_s - 1e-9 || plan.stance != self.last_stance
+            }
+        };
+        let mut mpc_event = None;
+        if due {
+            let started = std::time::Instant::now();
+            let solution = self.mpc.solve(&MpcInput {
+                body: &state.body,
+                reference: &plan.body_horizon,
+                feet_world: &plan.feet_horizon_world,
+                contacts: &plan.contacts_horizon,
+            });
+            mpc_event = Some(MpcEvent {
+                status: solution.status.clone(),
+                solve_time_s: started.elapsed().as_secs_f64(),
+                qp_size: solution.qp_size,
+            });
+            self.forces_world = solution.forces_world;
+            self.last_solve_time_s = Some(clock_s);
+            self.last_stance = plan.stance;
+        }
+        let torques = LegMap::from_fn(|leg| self.leg_torque(leg, state, plan, dynamics));
+        let forces_world = LegMap::from_fn(|leg| {
+            if plan.stance[leg] {
+                self.forces_world[leg]
+            } else {
+                Vector3::zeros()
+            }
+        });
+        ControlOutput {
+            torques,
+            forces_world,
+            mpc_event,
+        }
+    }
+
+    fn leg_torque(
+        &self,
+        leg: Leg,
+        state: &RobotState,
+        plan: &Plan,
+        dynamics: &impl DynamicsModel,
+    ) -> Vector3<f64> {
+        let joints = &state.joints[leg];
+        let jacobian = self.kinematics.foot_jacobian_body(leg, &joints.q);
+        let tau = match (plan.stance[leg], &plan.swing[leg]) {
+            (true, _) => {
+                stance_torque(&jacobian, &state.body.r_world_body, &self.forces_world[leg])
+            }
+            (false, Some(reference)) => {
+                let foot = FootMeasurement {
+                    p_body: self.kinematics.foot_position_body(leg, &joints.q),
+                    v_body: jacobian * joints.qd,
+                    jacobian,
+                };
+                swing_torque(
+                    reference,
+                    &foot,
+                    &self.config.swing,
+                    &dynamics.leg_dynamics(leg),
+                )
+            }
+            // A leg neither in stance nor given a swing reference holds still in place.
+            (false, None) => {
+                let p = self.kinematics.foot_position_body(leg, &joints.q);
+                let foot = FootMeasurement {
+                    p_body: p,
+                    v_body: jacobian * joints.qd,
+                    jacobian,
+                };
+                swing_torque(
+                    &FootReference {
+                        p_body: p,
+                        ..Default::default()
+                    },
+                    &foot,
+                    &self.config.swing,
+                    &dynamics.leg_dynamics(leg),
+                )
+            }
+        };
+        clamp_torque(&tau, self.torque_limit_nm)
+    }
+
+    pub fn kinematics(&self) -> &LegKinematics {
+        &self.kinematics
+    }
+}
+
+/// Foot positions in the world frame from the encoders and the trunk pose.
+pub fn feet_world(kinematics: &LegKinematics, state: &RobotState) -> LegMap<Vector3<f64>> {
+    LegMap::from_fn(|leg| {
+        state.body.p_world
+            + state.body.r_world_body * kinematics.foot_position_body(leg, &state.joints[leg].q)
+    })
+}

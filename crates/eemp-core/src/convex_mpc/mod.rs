@@ -1,0 +1,421 @@
+//! Convex MPC on ground-reaction forces (Di Carlo et al. 2018), the stance controller of the
+//! paper's eq. (2): forces f over a horizon minimise body-state tracking error plus force effort
+//! under the single-rigid-body model, subject to the friction pyramid and 0 ≤ f_min ≤ f_z ≤ f_max,
+//! with forces only on feet in contact. The first step's forces are applied as τ = −Jᵀ Rᵀ f
+//! (see [`crate::leg_control`]).
+
+mod condense;
+pub mod model;
+pub mod qp_backend;
+
+use crate::body_reference::BodyReference;
+use crate::body_state::BodyState;
+use crate::config_error::{check_range, ConfigError};
+use crate::leg::{Leg, LegMap};
+use crate::robot::CompositeBody;
+use model::{InputMatrix, StateVector, GRAVITY, NU};
+use nalgebra::{DMatrix, DVector, Vector3};
+pub use qp_backend::{QpError, QpSolverKind};
+use serde::{Deserialize, Serialize};
+
+/// MPC settings. Weights are on squared errors summed over the horizon.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MpcConfig {
+    /// Number of prediction steps (default 10).
+    pub horizon: usize,
+    /// Prediction step, s (default 0.025: 10 steps look 0.25 s ahead, one swing).
+    pub dt_s: f64,
+    /// Friction coefficient of the pyramid constraints (below the real floor's, for margin).
+    pub friction_coefficient: f64,
+    /// Lower bound on the normal force of a foot in contact, N.
+    pub f_min_n: f64,
+    /// Upper bound on the normal force of a foot in contact, N.
+    pub f_max_n: f64,
+    /// Weights on roll, pitch, yaw errors (1/rad²).
+    pub weight_rpy: [f64; 3],
+    /// Weights on position errors (1/m²).
+    pub weight_position: [f64; 3],
+    /// Weights on angular-velocity errors (s²/rad²).
+    pub weight_omega: [f64; 3],
+    /// Weights on linear-velocity errors (s²/m²).
+    pub weight_velocity: [f64; 3],
+    /// Weight on every squared force component (1/N²).
+    pub weight_force: f64,
+    pub solver: QpSolverKind,
+    /// Leave the force variables of feet out of contact out of the QP (smaller problem) instead
+    /// of bounding them to zero.
+    pub drop_swing_forces: bool,
+}
+
+impl Default for MpcConfig {
+    fn default() -> Self {
+        MpcConfig {
+            horizon: 10,
+            dt_s: 0.025,
+            friction_coefficient: 0.6,
+            f_min_n: 0.0,
+            f_max_n: 160.0,
+            weight_rpy: [100.0, 100.0, 50.0],
+            weight_position: [50.0, 50.0, 200.0],
+            weight_omega: [0.5, 0.5, 0.5],
+            weight_velocity: [5.0, 5.0, 5.0],
+            weight_force: 1e-5,
+            solver: QpSolverKind::Quadprog,
+            drop_swing_forces: true,
+        }
+    }
+}
+
+impl MpcConfig {
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        check_range("mpc.horizon", self.horizon as f64, 1.0, 40.0)?;
+        check_range("mpc.dt_s", self.dt_s, 0.002, 0.1)?;
+        check_range(
+            "mpc.friction_coefficient",
+            self.friction_coefficient,
+            0.05,
+            2.0,
+        )?;
+        check_range("mpc.f_min_n", self.f_min_n, 0.0, 1000.0)?;
+        check_range("mpc.f_max_n", self.f_max_n, self.f_min_n.max(1.0), 5000.0)?;
+        for (name, w) in [
+            ("mpc.weight_rpy", self.weight_rpy),
+            ("mpc.weight_position", self.weight_position),
+            ("mpc.weight_omega", self.weight_omega),
+            ("mpc.weight_velocity", self.weight_velocity),
+        ] {
+            for (i, v) in w.iter().enumerate() {
+                check_range(&format!("{name}[{i}]"), *v, 0.0, 1e6)?;
+            }
+        }
+        check_range("mpc.weight_force", self.weight_force, 1e-12, 1.0)?;
+        Ok(())
+    }
+
+    fn state_weights(&self) -> StateVector {
+        let mut q = StateVector::zeros();
+        for i in 0..3 {
+            q[i] = self.weight_rpy[i];
+            q[3 + i] = self.weight_position[i];
+            q[6 + i] = self.weight_omega[i];
+            q[9 + i] = self.weight_velocity[i];
+        }
+        q
+    }
+}
+
+/// What the MPC is asked at one solve. All slices have one entry per horizon step
+/// (step k covers time t + k·dt … t + (k+1)·dt; the reference is for the state at its end).
+#[derive(Clone, Copy, Debug)]
+pub struct MpcInput<'a> {
+    pub body: &'a BodyState,
+    pub reference: &'a [BodyReference],
+    /// Foot positions (world frame, m) during each step.
+    pub feet_world: &'a [LegMap<Vector3<f64>>],
+    /// Which feet may push during each step (the contact schedule C_ref).
+    pub contacts: &'a [LegMap<bool>],
+}
+
+/// How a solve ended.
+#[derive(Clone, Debug, PartialEq)]
+pub enum MpcStatus {
+    Solved,
+    /// The QP failed; the last good forces were reused (feet no longer in contact get zero).
+    FallbackLastGood(QpError),
+    /// The QP failed and there were no good forces yet: static weight distribution.
+    FallbackStatic(QpError),
+}
+
+impl MpcStatus {
+    pub fn is_solved(&self) -> bool {
+        matches!(self, MpcStatus::Solved)
+    }
+}
+
+/// Ground-reaction forces for the first step (world frame, force of the ground on each foot, N).
+#[derive(Clone, Debug, PartialEq)]
+pub struct MpcSolution {
+    pub forces_world: LegMap<Vector3<f64>>,
+    pub status: MpcStatus,
+    /// Solver iterations (see [`qp_backend::QpSolution`]).
+    pub iterations: usize,
+    /// Number of QP variables and constraints.
+    pub qp_size: (usize, usize),
+}
+
+/// The MPC with its workspace. One per robot; no global state.
+pub struct ConvexMpc {
+    config: MpcConfig,
+    body: CompositeBody,
+    last_good: Option<LegMap<Vector3<f64>>>,
+    // Workspace, reused across solves.
+    b: Vec<InputMatrix>,
+    refs: Vec<StateVector>,
+    h_full: DMatrix<f64>,
+    g_full: DVector<f64>,
+}
+
+impl ConvexMpc {
+    pub fn new(config: MpcConfig, body: CompositeBody) -> Result<Self, ConfigError> {
+        config.validate()?;
+        let n = config.horizon;
+        Ok(ConvexMpc {
+            body,
+            last_good: None,
+            b: Vec::with_capacity(n),
+            refs: Vec::with_capacity(n),
+            h_full: DMatrix::zeros(n * NU, n * NU),
+            g_full: DVector::zeros(n * NU),
+            config,
+        })
+    }
+
+    pub fn config(&self) -> &MpcConfig {
+        &self.config
+    }
+
+    pub fn body(&self) -> &CompositeBody {
+        &self.body
+    }
+
+    /// Solves for the ground-reaction forces. Never panics on bad numbers: a non-finite input or
+    /// a failed QP gives a fallback with the reason in the status.
+    pub fn solve(&mut self, input: &MpcInput) -> MpcSolution {
+        let n = self.config.horizon;
+        let contacts_now = input
+            .contacts
+            .first()
+            .copied()
+            .unwrap_or(LegMap::splat(false));
+        if input.reference.len() != n || input.feet_world.len() != n || input.contacts.len() != n {
+            return self.fallback(
+                QpError::Malformed(format!("inputs must have {n} horizon steps")),
+                input,
+                contacts_now,
+            );
+        }
+        let inputs_finite = input.body.is_finite()
+            && input.reference.iter().all(|r| {
+                r.rpy
+                    .iter()
+                    .chain(r.p_world.iter())
+                    .chain(r.omega_world.iter())
+                    .chain(r.v_world.iter())
+                    .all(|v| v.is_finite())
+            })
+            && input
+                .feet_world
+                .iter()
+                .all(|f| f.0.iter().all(|p| p.iter().all(|v| v.is_finite())));
+        if !inputs_finite {
+            return self.fallback(
+                QpError::Malformed("non-finite state, reference or foot position".into()),
+                input,
+                contacts_now,
+            );
+        }
+
+        let body = input.body;
+        let rpy = body.rpy();
+        let yaw = rpy.z;
+        let dt = self.config.dt_s;
+        let a = model::state_matrix(yaw, dt);
+        let com_offset_world = body.r_world_body * self.body.com_body;
+
+        self.b.clear();
+        self.refs.clear();
+        for k in 0..n {
+            let r = &input.reference[k];
+            let p_com = r.p_world + com_offset_world;
+            let arms = LegMap::from_fn(|leg| input.feet_world[k][leg] - p_com).0;
+            self.b.push(model::input_matrix(
+                yaw,
+                dt,
+                self.body.mass_kg,
+                &self.body.inertia_body,
+                &arms,
+            ));
+            let mut x = StateVector::zeros();
+            // Keep the reference yaw on the same branch as the measured yaw.
+            let ref_yaw = yaw + wrap(r.rpy.z - yaw);
+            x.fixed_rows_mut::<3>(0)
+                .copy_from(&Vector3::new(r.rpy.x, r.rpy.y, ref_yaw));
+            x.fixed_rows_mut::<3>(3).copy_from(&r.p_world);
+            x.fixed_rows_mut::<3>(6).copy_from(&r.omega_world);
+            x.fixed_rows_mut::<3>(9).copy_from(&r.v_world);
+            x[12] = GRAVITY;
+            self.refs.push(x);
+        }
+        let mut x0 = StateVector::zeros();
+        x0.fixed_rows_mut::<3>(0).copy_from(&rpy);
+        x0.fixed_rows_mut::<3>(3).copy_from(&body.p_world);
+        x0.fixed_rows_mut::<3>(6).copy_from(&body.omega_world);
+        x0.fixed_rows_mut::<3>(9).copy_from(&body.v_world);
+        x0[12] = GRAVITY;
+
+        condense::condense(
+            &a,
+            &self.b,
+            &x0,
+            &self.refs,
+            &self.config.state_weights(),
+            self.config.weight_force,
+            &mut self.h_full,
+            &mut self.g_full,
+        );
+
+        // Variables kept in the QP: (step, leg) blocks.
+        let blocks: Vec<(usize, Leg)> = (0..n)
+            .flat_map(|k| Leg::ALL.into_iter().map(move |leg| (k, leg)))
+            .filter(|(k, leg)| !self.config.drop_swing_forces || input.contacts[*k][*leg])
+            .collect();
+        let nv = blocks.len() * 3;
+        if nv == 0 {
+            // No foot may push anywhere on the horizon: zero force is the only feasible answer.
+            return MpcSolution {
+                forces_world: LegMap::splat(Vector3::zeros()),
+                status: MpcStatus::Solved,
+                iterations: 0,
+                qp_size: (0, 0),
+            };
+        }
+        let full_index: Vec<usize> = blocks
+            .iter()
+            .flat_map(|(k, leg)| (0..3).map(move |c| k * NU + 3 * leg.index() + c))
+            .collect();
+        let mut p = vec![0.0; nv * nv];
+        let mut q = vec![0.0; nv];
+        for (i, fi) in full_index.iter().enumerate() {
+            q[i] = self.g_full[*fi];
+            for (j, fj) in full_index.iter().enumerate() {
+                p[i * nv + j] = self.h_full[(*fi, *fj)];
+            }
+        }
+        // Feet out of contact (only present when their variables are kept): f = 0 as equality
+        // rows, first, because a cone squeezed to a point is degenerate for an active-set method.
+        // Feet in contact: friction pyramid (4 rows), f_z ≤ f_max, and f_z ≥ f_min when f_min > 0.
+        let mu = self.config.friction_coefficient;
+        let with_fmin = self.config.f_min_n > 0.0;
+        let n_contact = blocks
+            .iter()
+            .filter(|(k, leg)| input.contacts[*k][*leg])
+            .count();
+        let meq = 3 * (blocks.len() - n_contact);
+        let m = meq + n_contact * if with_fmin { 6 } else { 5 };
+        let mut g = vec![0.0; m * nv];
+        let mut h = vec![0.0; m];
+        let (mut r_eq, mut r_in) = (0, meq);
+        for (bi, (k, leg)) in blocks.iter().enumerate() {
+            let (fx, fy, fz) = (3 * bi, 3 * bi + 1, 3 * bi + 2);
+            if !input.contacts[*k][*leg] {
+                for col in [fx, fy, fz] {
+                    g[r_eq * nv + col] = 1.0;
+                    r_eq += 1;
+                }
+                continue;
+            }
+            for (col, sign) in [(fx, 1.0), (fx, -1.0), (fy, 1.0), (fy, -1.0)] {
+                g[r_in * nv + col] = sign;
+                g[r_in * nv + fz] = -mu;
+                r_in += 1;
+            }
+            g[r_in * nv + fz] = 1.0;
+            h[r_in] = self.config.f_max_n;
+            r_in += 1;
+            if with_fmin {
+                g[r_in * nv + fz] = -1.0;
+                h[r_in] = -self.config.f_min_n;
+                r_in += 1;
+            }
+        }
+
+        match qp_backend::solve(self.config.solver, &mut p, &q, &g, &h, meq) {
+            Ok(sol) => {
+                let mut forces = LegMap::splat(Vector3::zeros());
+                for (bi, (k, leg)) in blocks.iter().enumerate() {
+                    if *k == 0 {
+                        forces[*leg] =
+                            Vector3::new(sol.x[3 * bi], sol.x[3 * bi + 1], sol.x[3 * bi + 2]);
+                    }
+                }
+                self.last_good = Some(forces);
+                MpcSolution {
+                    forces_world: forces,
+                    status: MpcStatus::Solved,
+                    iterations: sol.iterations,
+                    qp_size: (nv, m),
+                }
+            }
+            Err(e) => {
+                let mut s = self.fallback(e, input, contacts_now);
+                s.qp_size = (nv, m);
+                s
+            }
+        }
+    }
+
+    fn fallback(&self, reason: QpError, input: &MpcInput, contacts: LegMap<bool>) -> MpcSolution {
+        let (forces, status) = match &self.last_good {
+            Some(last) => (
+                LegMap::from_fn(|leg| {
+                    if contacts[leg] {
+                        last[leg]
+                    } else {
+                        Vector3::zeros()
+                    }
+                }),
+                MpcStatus::FallbackLastGood(reason),
+            ),
+            None => (
+                self.static_forces(input, contacts),
+                MpcStatus::FallbackStatic(reason),
+            ),
+        };
+        MpcSolution {
+            forces_world: forces,
+            status,
+            iterations: 0,
+            qp_size: (0, 0),
+        }
+    }
+
+    /// Vertical forces that carry the weight with zero moment about the COM (minimum norm).
+    pub fn static_forces(&self, input: &MpcInput, contacts: LegMap<bool>) -> LegMap<Vector3<f64>> {
+        let legs: Vec<Leg> = Leg::ALL.into_iter().filter(|l| contacts[*l]).collect();
+        let mut out = LegMap::splat(Vector3::zeros());
+        if legs.is_empty() || !input.body.is_finite() {
+            return out;
+        }
+        let com = input.body.p_world + input.body.r_world_body * self.body.com_body;
+        let weight = self.body.mass_kg * GRAVITY;
+        // Rows: Σ f_z = m g, Σ f_z (x − x_c) = 0, Σ f_z (y − y_c) = 0.
+        let mut a = DMatrix::zeros(3, legs.len());
+        for (j, leg) in legs.iter().enumerate() {
+            let p = input.feet_world.first().map(|f| f[*leg]).unwrap_or(com);
+            if !p.iter().all(|v| v.is_finite()) {
+                return out;
+            }
+            a[(0, j)] = 1.0;
+            a[(1, j)] = p.x - com.x;
+            a[(2, j)] = p.y - com.y;
+        }
+        let rhs = DVector::from_vec(vec![weight, 0.0, 0.0]);
+        let fz = a
+            .clone()
+            .pseudo_inverse(1e-9)
+            .map(|pinv| pinv * rhs)
+            .unwrap_or_else(|_| DVector::from_element(legs.len(), weight / legs.len() as f64));
+        for (j, leg) in legs.iter().enumerate() {
+            out[*leg] = Vector3::new(0.0, 0.0, fz[j].clamp(0.0, self.config.f_max_n));
+        }
+        out
+    }
+}
+
+fn wrap(a: f64) -> f64 {
+    (a + std::f64::consts::PI).rem_euclid(2.0 * std::f64::consts::PI) - std::f64::consts::PI
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,303 @@
+use super::*;
+use crate::kinematics::LegKinematics;
+use crate::robot::RobotConfig;
+use approx::assert_relative_eq;
+use nalgebra::UnitQuaternion;
+use rand::{Rng, SeedableRng};
+
+struct Scene {
+    mpc: ConvexMpc,
+    body: BodyState,
+    reference: Vec<BodyReference>,
+    feet: Vec<LegMap<Vector3<f64>>>,
+    contacts: Vec<LegMap<bool>>,
+}
+
+fn standing_scene(config: MpcConfig) -> Scene {
+    let robot = RobotConfig::a1();
+    let kin = LegKinematics::new(&robot);
+    let composite = robot.composite_body(&robot.standing_pose());
+    let n = config.horizon;
+    let body = BodyState {
+        p_world: Vector3::new(0.0, 0.0, 0.3),
+        r_world_body: UnitQuaternion::identity(),
+        v_world: Vector3::zeros(),
+        omega_world: Vector3::zeros(),
+    };
+    let feet = LegMap::from_fn(|leg| {
+        let mut p = kin.nominal_foot_body(leg) + body.p_world;
+        p.z = 0.02;
+        p
+    });
+    let reference = vec![
+        BodyReference {
+            rpy: Vector3::zeros(),
+            p_world: body.p_world,
+            omega_world: Vector3::zeros(),
+            v_world: Vector3::zeros()
+        };
+        n
+    ];
+    Scene {
+        mpc: ConvexMpc::new(config, composite).unwrap(),
+        body,
+        reference,
+        feet: vec![feet; n],
+        contacts: vec![LegMap::splat(true); n],
+    }
+}
+
+impl Scene {
+    fn solve(&mut self) -> MpcSolution {
+        let input = MpcInput {
+            body: &self.body,
+            reference: &self.reference,
+            feet_world: &self.feet,
+            contacts: &self.contacts,
+        };
+        self.mpc.solve(&input)
+    }
+}
+
+#[test]
+fn standing_forces_carry_the_weight_and_split_by_the_centre_of_mass() {
+    for solver in [QpSolverKind::Quadprog, QpSolverKind::Clarabel] {
+        let mut scene = standing_scene(MpcConfig {
+            solver,
+            ..MpcConfig::default()
+        });
+        let sol = scene.solve();
+        assert!(sol.status.is_solved(), "{:?}", sol.status);
+        let body = scene.mpc.body().clone();
+        let total: Vector3<f64> = sol.forces_world.0.iter().sum();
+        let weight = body.mass_kg * GRAVITY;
+        assert_relative_eq!(total.z, weight, max_relative = 2e-3);
+        assert!(total.xy().norm() < 1e-2 * weight, "horizontal {total:?}");
+        // Zero moment about the COM: the lever law front/rear and left/right.
+        let com = scene.body.p_world + body.com_body;
+        let moment: Vector3<f64> = Leg::ALL
+            .iter()
+            .map(|l| (scene.feet[0][*l] - com).cross(&sol.forces_world[*l]))
+            .sum();
+        assert!(
+            moment.norm() < 0.05,
+            "moment about COM {moment:?} N·m ({solver:?})"
+        );
+        let front = sol.forces_world[Leg::FrontLeft].z + sol.forces_world[Leg::FrontRight].z;
+        let rear = sol.forces_world[Leg::RearLeft].z + sol.forces_world[Leg::RearRight].z;
+        let x_front = scene.feet[0][Leg::FrontLeft].x;
+        let x_rear = scene.feet[0][Leg::RearLeft].x;
+        assert_relative_eq!(
+            front * (x_front - com.x),
+            rear * (com.x - x_rear),
+            max_relative = 5e-3
+        );
+    }
+}
+
+#[test]
+fn a_foot_out_of_contact_gets_zero_force() {
+    for drop_swing_forces in [true, false] {
+        let mut scene = standing_scene(MpcConfig {
+            drop_swing_forces,
+            ..MpcConfig::default()
+        });
+        for c in scene.contacts.iter_mut() {
+            c[Leg::FrontRight] = false;
+            c[Leg::RearLeft] = false;
+        }
+        let sol = scene.solve();
+        assert!(
+            sol.status.is_solved(),
+            "drop {drop_swing_forces}: {:?}",
+            sol.status
+        );
+        assert!(
+            sol.forces_world[Leg::FrontRight].norm() < 1e-6,
+            "{:?}",
+            sol.forces_world
+        );
+        assert!(sol.forces_world[Leg::RearLeft].norm() < 1e-6);
+        assert!(
+            sol.forces_world[Leg::FrontLeft].z > 20.0,
+            "{:?}",
+            sol.forces_world
+        );
+    }
+}
+
+#[test]
+fn friction_and_force_limits_hold_on_every_solution() {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+    for solver in [QpSolverKind::Quadprog, QpSolverKind::Clarabel] {
+        for _ in 0..30 {
+            let config = MpcConfig {
+                solver,
+                friction_coefficient: rng.random_range(0.2..0.8),
+                f_max_n: rng.random_range(60.0..150.0),
+                ..MpcConfig::default()
+            };
+            let (mu, fmax) = (config.friction_coefficient, config.f_max_n);
+            let mut scene = standing_scene(config);
+            // Demanding references: push hard sideways and forward, tilt, with random contacts.
+            let v = Vector3::new(
+                rng.random_range(-2.0..2.0),
+                rng.random_range(-2.0..2.0),
+                0.0,
+            );
+            for (k, r) in scene.reference.iter_mut().enumerate() {
+                r.v_world = v;
+                r.p_world += v * 0.025 * (k + 1) as f64;
+                r.rpy = Vector3::new(
+                    rng.random_range(-0.3..0.3),
+                    rng.random_range(-0.3..0.3),
+                    rng.random_range(-0.5..0.5),
+                );
+            }
+            for c in scene.contacts.iter_mut() {
+                for leg in Leg::ALL {
+                    c[leg] = rng.random_bool(0.7);
+                }
+            }
+            let sol = scene.solve();
+            assert!(sol.status.is_solved(), "{:?}", sol.status);
+            for leg in Leg::ALL {
+                let f = sol.forces_world[leg];
+                let tol = 1e-6 * (1.0 + fmax);
+                assert!(
+                    f.x.abs() <= mu * f.z + tol && f.y.abs() <= mu * f.z + tol,
+                    "{leg:?} {f:?} mu {mu}"
+                );
+                assert!(
+                    f.z <= fmax + tol && f.z >= -tol,
+                    "{leg:?} {f:?} fmax {fmax}"
+                );
+                if !scene.contacts[0][leg] {
+                    assert!(f.norm() < 1e-6);
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn the_two_qp_solvers_agree() {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+    for _ in 0..10 {
+        let mut a = standing_scene(MpcConfig::default());
+        let v = Vector3::new(
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+            0.0,
+        );
+        for r in a.reference.iter_mut() {
+            r.v_world = v;
+        }
+        a.contacts[0][Leg::FrontLeft] = false;
+        let mut b = standing_scene(MpcConfig {
+            solver: QpSolverKind::Clarabel,
+            ..MpcConfig::default()
+        });
+        b.reference = a.reference.clone();
+        b.contacts = a.contacts.clone();
+        let (sa, sb) = (a.solve(), b.solve());
+        for leg in Leg::ALL {
+            assert!(
+                (sa.forces_world[leg] - sb.forces_world[leg]).norm() < 0.05,
+                "{leg:?}: {:?} vs {:?}",
+                sa.forces_world[leg],
+                sb.forces_world[leg]
+            );
+        }
+    }
+}
+
+#[test]
+fn a_repeated_solve_equals_a_fresh_solve() {
+    // The MPC object keeps workspace between solves; it must not leak into the answer.
+    let mut used = standing_scene(MpcConfig::default());
+    for r in used.reference.iter_mut() {
+        r.v_world = Vector3::new(0.8, 0.0, 0.0);
+    }
+    used.solve();
+    let mut fresh = standing_scene(MpcConfig::default());
+    used.reference = fresh.reference.clone();
+    let (s1, s2) = (used.solve(), fresh.solve());
+    assert_eq!(s1.forces_world, s2.forces_world);
+}
+
+#[test]
+fn bad_numbers_give_a_fallback_never_nan() {
+    let mut scene = standing_scene(MpcConfig::default());
+    scene.body.v_world.x = f64::NAN;
+    let sol = scene.solve();
+    assert!(
+        matches!(sol.status, MpcStatus::FallbackStatic(_)),
+        "{:?}",
+        sol.status
+    );
+    assert!(sol
+        .forces_world
+        .0
+        .iter()
+        .all(|f| f.iter().all(|v| v.is_finite())));
+    // Static fallback still carries the weight.
+    scene.body.v_world.x = 0.0;
+    let good = scene.solve();
+    assert!(good.status.is_solved());
+    scene.reference[3].p_world.z = f64::INFINITY;
+    let sol = scene.solve();
+    assert!(
+        matches!(sol.status, MpcStatus::FallbackLastGood(_)),
+        "{:?}",
+        sol.status
+    );
+    assert_eq!(sol.forces_world, good.forces_world);
+}
+
+#[test]
+fn static_distribution_matches_the_lever_law() {
+    let scene = standing_scene(MpcConfig::default());
+    let input = MpcInput {
+        body: &scene.body,
+        reference: &scene.reference,
+        feet_world: &scene.feet,
+        contacts: &scene.contacts,
+    };
+    let f = scene.mpc.static_forces(&input, LegMap::splat(true));
+    let total: f64 = f.0.iter().map(|v| v.z).sum();
+    assert_relative_eq!(
+        total,
+        scene.mpc.body().mass_kg * GRAVITY,
+        max_relative = 1e-9
+    );
+}
+
+#[test]
+fn config_validation_names_the_value() {
+    let err = MpcConfig {
+        horizon: 0,
+        ..MpcConfig::default()
+    }
+    .validate()
+    .unwrap_err()
+    .to_string();
+    assert!(err.contains("mpc.horizon"), "{err}");
+    let err = MpcConfig {
+        friction_coefficient: f64::NAN,
+        ..MpcConfig::default()
+    }
+    .validate()
+    .unwrap_err()
+    .to_string();
+    assert!(err.contains("mpc.friction_coefficient"), "{err}");
+    let err = MpcConfig {
+        f_min_n: 50.0,
+        f_max_n: 10.0,
+        ..MpcConfig::default()
+    }
+    .validate()
+    .unwrap_err()
+    .to_string();
+    assert!(err.contains("mpc.f_max_n"), "{err}");
+}

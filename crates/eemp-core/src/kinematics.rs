@@ -1,0 +1,257 @@
+//! Leg kinematics of a Unitree-style leg (abduction about x, hip and knee about y), in named frames.
+//!
+//! Frames: *body* = trunk frame (x forward, y left, z up); *hip* = body axes with origin at the
+//! leg's abduction joint. Foot position = centre of the foot sphere.
+
+use crate::leg::{Leg, LegMap};
+use crate::robot::{LinkKind, RobotConfig};
+use nalgebra::{Matrix3, Rotation3, Vector3};
+
+/// Origins and orientations (in the body frame) of one leg's three link frames.
+#[derive(Clone, Copy, Debug)]
+pub struct LinkFrames {
+    pub hip: (Vector3<f64>, Matrix3<f64>),
+    pub thigh: (Vector3<f64>, Matrix3<f64>),
+    pub calf: (Vector3<f64>, Matrix3<f64>),
+}
+
+impl LinkFrames {
+    pub fn of(&self, kind: LinkKind) -> (Vector3<f64>, Matrix3<f64>) {
+        match kind {
+            LinkKind::Hip => self.hip,
+            LinkKind::Thigh => self.thigh,
+            LinkKind::Calf => self.calf,
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
+pub enum IkError {
+    #[error("foot target out of reach of leg {leg:?}: {detail}")]
+    Unreachable { leg: Leg, detail: &'static str },
+}
+
+/// Kinematic constants of the four legs.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LegKinematics {
+    /// Abduction joint of each leg in the body frame, m.
+    p_hip_body: LegMap<Vector3<f64>>,
+    abduction_to_thigh_m: f64,
+    thigh_length_m: f64,
+    calf_length_m: f64,
+    joint_range_rad: [[f64; 2]; 3],
+}
+
+impl LegKinematics {
+    pub fn new(robot: &RobotConfig) -> Self {
+        let l = &robot.leg;
+        LegKinematics {
+            p_hip_body: LegMap::from_fn(|leg| {
+                Vector3::new(
+                    leg.front_sign() * l.hip_offset_m[0],
+                    leg.side_sign() * l.hip_offset_m[1],
+                    0.0,
+                )
+            }),
+            abduction_to_thigh_m: l.abduction_to_thigh_m,
+            thigh_length_m: l.thigh_length_m,
+            calf_length_m: l.calf_length_m,
+            joint_range_rad: [l.abduction_range_rad, l.thigh_range_rad, l.calf_range_rad],
+        }
+    }
+
+    /// Abduction-joint position in the body frame, m.
+    pub fn hip_position_body(&self, leg: Leg) -> Vector3<f64> {
+        self.p_hip_body[leg]
+    }
+
+    /// Where a vertical leg puts its foot: under the thigh joint (x of the hip, y of the hip plus
+    /// the abduction offset). The planner's ellipses are centred here ("beneath the hip").
+    pub fn nominal_foot_body(&self, leg: Leg) -> Vector3<f64> {
+        self.p_hip_body[leg] + Vector3::new(0.0, leg.side_sign() * self.abduction_to_thigh_m, 0.0)
+    }
+
+    /// Foot position relative to the abduction joint with the abduction angle still to apply.
+    fn foot_in_abduction_frame(&self, leg: Leg, q: &Vector3<f64>) -> Vector3<f64> {
+        let (l2, l3) = (self.thigh_length_m, self.calf_length_m);
+        let (q1, q12) = (q[1], q[1] + q[2]);
+        Vector3::new(
+            -l2 * q1.sin() - l3 * q12.sin(),
+            leg.side_sign() * self.abduction_to_thigh_m,
+            -l2 * q1.cos() - l3 * q12.cos(),
+        )
+    }
+
+    /// Forward kinematics: foot position in the body frame, m.
+    pub fn foot_position_body(&self, leg: Leg, q: &Vector3<f64>) -> Vector3<f64> {
+        self.p_hip_body[leg]
+            + Rotation3::from_axis_angle(&Vector3::x_axis(), q[0])
+                * self.foot_in_abduction_frame(leg, q)
+    }
+
+    /// Foot Jacobian ∂p_foot_body/∂q (3×3; columns = abduction, thigh, calf).
+    pub fn foot_jacobian_body(&self, leg: Leg, q: &Vector3<f64>) -> Matrix3<f64> {
+        let (l2, l3) = (self.thigh_length_m, self.calf_length_m);
+        let (s0, c0) = q[0].sin_cos();
+        let (s1, c1) = q[1].sin_cos();
+        let (s12, c12) = (q[1] + q[2]).sin_cos();
+        let p = self.foot_in_abduction_frame(leg, q);
+        let rx = Matrix3::new(1.0, 0.0, 0.0, 0.0, c0, -s0, 0.0, s0, c0);
+        let drx = Matrix3::new(0.0, 0.0, 0.0, 0.0, -s0, -c0, 0.0, c0, -s0);
+        let col0 = drx * p;
+        let col1 = rx * Vector3::new(-l2 * c1 - l3 * c12, 0.0, l2 * s1 + l3 * s12);
+        let col2 = rx * Vector3::new(-l3 * c12, 0.0, l3 * s12);
+        Matrix3::from_columns(&[col0, col1, col2])
+    }
+
+    /// Inverse kinematics (knee-backward branch, calf angle < 0) for a foot target in the body
+    /// frame, in the walking workspace: the foot below the thigh joint in the leg plane (a foot
+    /// above it is reached with the abduction turned past ±π/2, which the joint range forbids).
+    /// Angles outside the joint ranges are reported as unreachable.
+    pub fn inverse(&self, leg: Leg, p_foot_body: &Vector3<f64>) -> Result<Vector3<f64>, IkError> {
+        let (l1, l2, l3) = (
+            self.abduction_to_thigh_m,
+            self.thigh_length_m,
+            self.calf_length_m,
+        );
+        let p = p_foot_body - self.p_hip_body[leg];
+        let s = leg.side_sign();
+        let r2 = p.y * p.y + p.z * p.z;
+        if r2 < l1 * l1 {
+            return Err(IkError::Unreachable {
+                leg,
+                detail: "target inside the abduction offset",
+            });
+        }
+        // In the leg plane the foot sits at (x, s·l1, −L) before abduction.
+        let big_l = (r2 - l1 * l1).sqrt();
+        let q0 = wrap_angle(p.z.atan2(p.y) - (-big_l).atan2(s * l1));
+        let d2 = p.x * p.x + big_l * big_l;
+        let cos_knee = (d2 - l2 * l2 - l3 * l3) / (2.0 * l2 * l3);
+        if !(-1.0..=1.0).contains(&cos_knee) {
+            return Err(IkError::Unreachable {
+                leg,
+                detail: "target beyond thigh + calf length",
+            });
+        }
+        let q2 = -cos_knee.acos();
+        let q1 = (-p.x).atan2(big_l) - (l3 * q2.sin()).atan2(l2 + l3 * q2.cos());
+        let q = Vector3::new(q0, q1, q2);
+        for j in 0..3 {
+            let [lo, hi] = self.joint_range_rad[j];
+            if q[j] < lo - 1e-9 || q[j] > hi + 1e-9 {
+                return Err(IkError::Unreachable {
+                    leg,
+                    detail: "solution outside the joint ranges",
+                });
+            }
+        }
+        Ok(q)
+    }
+
+    /// The three link frames of `leg` at joint angles `q`, in the body frame.
+    pub fn link_frames(&self, leg: Leg, q: &Vector3<f64>) -> LinkFrames {
+        let rx = Rotation3::from_axis_angle(&Vector3::x_axis(), q[0]);
+        let r_thigh = rx * Rotation3::from_axis_angle(&Vector3::y_axis(), q[1]);
+        let r_calf = rx * Rotation3::from_axis_angle(&Vector3::y_axis(), q[1] + q[2]);
+        let hip = self.p_hip_body[leg];
+        let thigh = hip + rx * Vector3::new(0.0, leg.side_sign() * self.abduction_to_thigh_m, 0.0);
+        let calf = thigh + r_thigh * Vector3::new(0.0, 0.0, -self.thigh_length_m);
+        LinkFrames {
+            hip: (hip, *rx.matrix()),
+            thigh: (thigh, *r_thigh.matrix()),
+            calf: (calf, *r_calf.matrix()),
+        }
+    }
+
+    /// Joint range [min, max] of joint `j` (0 abduction, 1 thigh, 2 calf), rad.
+    pub fn joint_range(&self, j: usize) -> [f64; 2] {
+        self.joint_range_rad[j]
+    }
+
+    pub fn calf_length_m(&self) -> f64 {
+        self.calf_length_m
+    }
+}
+
+fn wrap_angle(a: f64) -> f64 {
+    let two_pi = 2.0 * std::f64::consts::PI;
+    let mut w = a % two_pi;
+    if w > std::f64::consts::PI {
+        w -= two_pi;
+    } else if w <= -std::f64::consts::PI {
+        w += two_pi;
+    }
+    w
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use approx::assert_relative_eq;
+    use proptest::prelude::*;
+
+    fn kin() -> LegKinematics {
+        LegKinematics::new(&RobotConfig::a1())
+    }
+
+    fn leg_strategy() -> impl Strategy<Value = Leg> {
+        (0usize..4).prop_map(|i| Leg::ALL[i])
+    }
+
+    #[test]
+    fn standing_pose_foot_is_under_the_thigh_joint() {
+        let k = kin();
+        for leg in Leg::ALL {
+            let p = k.foot_position_body(leg, &Vector3::new(0.0, 0.9, -1.8));
+            let nominal = k.nominal_foot_body(leg);
+            // Thigh at 0.9 and knee at −1.8 rad: thigh and calf mirror each other about vertical.
+            assert_relative_eq!(p.x, nominal.x, epsilon = 1e-12);
+            assert_relative_eq!(p.y, nominal.y, epsilon = 1e-12);
+            assert_relative_eq!(p.z, -2.0 * 0.2 * 0.9f64.cos(), epsilon = 1e-12);
+        }
+    }
+
+    proptest! {
+        #[test]
+        fn jacobian_matches_central_differences(leg in leg_strategy(),
+            q0 in -0.8..0.8f64, q1 in -1.0..4.1f64, q2 in -2.69..-0.92f64) {
+            let k = kin();
+            let q = Vector3::new(q0, q1, q2);
+            let jac = k.foot_jacobian_body(leg, &q);
+            let h = 1e-6;
+            for j in 0..3 {
+                let mut dq = Vector3::zeros();
+                dq[j] = h;
+                let fd = (k.foot_position_body(leg, &(q + dq)) - k.foot_position_body(leg, &(q - dq))) / (2.0 * h);
+                for i in 0..3 {
+                    prop_assert!((fd[i] - jac[(i, j)]).abs() < 1e-8, "J[{i},{j}] {} vs fd {}", jac[(i, j)], fd[i]);
+                }
+            }
+        }
+
+        #[test]
+        fn inverse_recovers_the_angles(leg in leg_strategy(),
+            q0 in -0.8..0.8f64, q1 in -0.5..2.0f64, q2 in -2.69..-0.92f64) {
+            let k = kin();
+            let q = Vector3::new(q0, q1, q2);
+            let p = k.foot_position_body(leg, &q);
+            // IK serves the walking workspace: the foot below the hip.
+            let below = k.link_frames(leg, &Vector3::new(0.0, q1, q2)).thigh.0.z - k.foot_position_body(leg, &Vector3::new(0.0, q1, q2)).z;
+            prop_assume!(below > 0.05);
+            let q_ik = k.inverse(leg, &p).unwrap();
+            prop_assert!((q_ik - q).norm() < 1e-9, "q {q:?} ik {q_ik:?}");
+            prop_assert!((k.foot_position_body(leg, &q_ik) - p).norm() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn inverse_rejects_unreachable_targets() {
+        let k = kin();
+        let far = k.nominal_foot_body(Leg::FrontLeft) + Vector3::new(0.0, 0.0, -0.5);
+        assert!(matches!(
+            k.inverse(Leg::FrontLeft, &far),
+            Err(IkError::Unreachable { .. })
+        ));
+    }
+}

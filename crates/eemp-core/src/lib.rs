@@ -1,0 +1,20 @@
+//! EEMP core: everything that would run on the real robot, with no simulator inside.
+//!
+//! - [`robot`], [`kinematics`]: the robot description and leg kinematics in named frames.
+//! - [`convex_mpc`]: stance control, the paper's eq. (2).
+//! - [`leg_control`]: swing control, eq. (1), and the stance torque map.
+//! - [`planner`]: the energy-efficient planner, eqs. (5)–(7) and Algorithm 1.
+//! - [`metrics`]: cost of transport (eq. 8) and force manipulability (eq. 9).
+
+pub mod body_reference;
+pub mod body_state;
+pub mod config_error;
+pub mod controller;
+pub mod convex_mpc;
+pub mod kinematics;
+pub mod leg;
+pub mod leg_control;
+pub mod robot;
+pub mod stand_profile;
+
+pub use leg::{Leg, LegMap};

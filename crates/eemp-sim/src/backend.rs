@@ -1,0 +1,313 @@
+//! The A1 in MuJoCo: names resolved once into typed handles, ground-truth state out, torques in.
+//!
+//! A step is split the way MuJoCo's control callback works: [`Simulation::prepare`] (mj_step1:
+//! kinematics, mass matrix, bias forces at the current state) → read the state and dynamics,
+//! compute torques → [`Simulation::advance`] (mj_step2: actuation, constraints, Euler
+//! integration). So the controller always sees the dynamics of the state it acts on.
+
+use crate::mjcf::{foot_geom_name, robot_mjcf, SceneExtras};
+use eemp_core::body_state::{BodyState, LegJointState, RobotState};
+use eemp_core::leg::{Leg, LegMap};
+use eemp_core::leg_control::{DynamicsModel, LegDynamics};
+use eemp_core::robot::RobotConfig;
+use mujoco_rs::prelude::*;
+use nalgebra::{Matrix3, UnitQuaternion, Vector3};
+use std::sync::Arc;
+
+#[derive(Debug, thiserror::Error)]
+pub enum SimError {
+    #[error("MuJoCo rejected the generated model: {0}")]
+    Model(String),
+    #[error("the model has no {kind} named '{name}'")]
+    MissingName { kind: &'static str, name: String },
+    #[error("initial pose unreachable: {0}")]
+    Pose(String),
+}
+
+/// Indices into MuJoCo's arrays, resolved once from names.
+#[derive(Clone, Debug)]
+struct Handles {
+    trunk_body: usize,
+    floor_geom: usize,
+    foot_geom: LegMap<usize>,
+    foot_site: LegMap<usize>,
+    calf_body: LegMap<usize>,
+    /// First qpos / qvel index of each leg's three joints, and its first actuator.
+    qpos_adr: LegMap<usize>,
+    dof_adr: LegMap<usize>,
+    actuator: LegMap<usize>,
+}
+
+pub struct Simulation {
+    data: MjData<Arc<MjModel>>,
+    handles: Handles,
+    nv: usize,
+    mass_matrix: Vec<f64>,
+    torque_limit_nm: f64,
+    total_mass_kg: f64,
+    foot_radius_m: f64,
+}
+
+fn id(
+    model: &MjModel,
+    kind: MjtObjBase,
+    kind_name: &'static str,
+    name: &str,
+) -> Result<usize, SimError> {
+    model
+        .name_to_id(kind, name)
+        .ok_or_else(|| SimError::MissingName {
+            kind: kind_name,
+            name: name.to_string(),
+        })
+}
+
+impl Simulation {
+    /// Builds the robot's model (flat floor plus `extras`) and its data.
+    pub fn new(robot: &RobotConfig, extras: &SceneExtras) -> Result<Self, SimError> {
+        let xml = robot_mjcf(robot, extras);
+        let model = MjModel::from_xml_string(&xml).map_err(|e| SimError::Model(e.to_string()))?;
+        let model = Arc::new(model);
+        let m: &MjModel = &model;
+        let trunk_body = id(m, MjtObjBase::mjOBJ_BODY, "body", "trunk")?;
+        let floor_geom = id(m, MjtObjBase::mjOBJ_GEOM, "geom", "floor")?;
+        let mut foot_geom = LegMap::splat(0);
+        let mut foot_site = LegMap::splat(0);
+        let mut calf_body = LegMap::splat(0);
+        let mut qpos_adr = LegMap::splat(0);
+        let mut dof_adr = LegMap::splat(0);
+        let mut actuator = LegMap::splat(0);
+        for leg in Leg::ALL {
+            let n = leg.short_name();
+            foot_geom[leg] = id(m, MjtObjBase::mjOBJ_GEOM, "geom", &foot_geom_name(leg))?;
+            foot_site[leg] = id(m, MjtObjBase::mjOBJ_SITE, "site", &format!("{n}_foot_site"))?;
+            calf_body[leg] = id(m, MjtObjBase::mjOBJ_BODY, "body", &format!("{n}_calf"))?;
+            let joint = id(
+                m,
+                MjtObjBase::mjOBJ_JOINT,
+                "joint",
+                &format!("{n}_hip_joint"),
+            )?;
+            qpos_adr[leg] = m.jnt_qposadr()[joint] as usize;
+            dof_adr[leg] = m.jnt_dofadr()[joint] as usize;
+            actuator[leg] = id(
+                m,
+                MjtObjBase::mjOBJ_ACTUATOR,
+                "actuator",
+                &format!("{n}_hip"),
+            )?;
+            // The three joints and actuators of a leg are consecutive in the generated model.
+            let calf = id(
+                m,
+                MjtObjBase::mjOBJ_JOINT,
+                "joint",
+                &format!("{n}_calf_joint"),
+            )?;
+            assert_eq!(
+                m.jnt_dofadr()[calf] as usize,
+                dof_adr[leg] + 2,
+                "leg joints are consecutive"
+            );
+        }
+        let nv = m.ffi().nv as usize;
+        let data = MjData::new(model.clone());
+        Ok(Simulation {
+            data,
+            handles: Handles {
+                trunk_body,
+                floor_geom,
+                foot_geom,
+                foot_site,
+                calf_body,
+                qpos_adr,
+                dof_adr,
+                actuator,
+            },
+            nv,
+            mass_matrix: vec![0.0; nv * nv],
+            torque_limit_nm: robot.leg.torque_limit_nm,
+            total_mass_kg: robot.total_mass_kg(),
+            foot_radius_m: robot.leg.foot_radius_m,
+        })
+    }
+
+    /// Puts the robot at rest: trunk origin at `p_world` with yaw 0, joints at `q`. Zero velocity.
+    pub fn reset(&mut self, p_world: Vector3<f64>, q: &LegMap<Vector3<f64>>) {
+        self.data.reset();
+        {
+            let qpos = self.data.qpos_mut();
+            qpos[0..3].copy_from_slice(p_world.as_slice());
+            qpos[3..7].copy_from_slice(&[1.0, 0.0, 0.0, 0.0]);
+        }
+        for leg in Leg::ALL {
+            let a = self.handles.qpos_adr[leg];
+            self.data.qpos_mut()[a..a + 3].copy_from_slice(q[leg].as_slice());
+        }
+        self.data.forward();
+    }
+
+    /// Computes kinematics, mass matrix and bias forces at the current state (mj_step1).
+    pub fn prepare(&mut self) {
+        self.data.step1();
+        self.data
+            .full_m(&mut self.mass_matrix)
+            .expect("buffer is nv×nv");
+    }
+
+    /// Applies joint torques (clamped to the motor limit by MuJoCo's ctrlrange) and integrates
+    /// one time step (mj_step2).
+    pub fn advance(&mut self, torques: &LegMap<Vector3<f64>>) {
+        for leg in Leg::ALL {
+            let a = self.handles.actuator[leg];
+            for j in 0..3 {
+                self.data.ctrl_mut()[a + j] = torques[leg][j];
+            }
+        }
+        self.data.step2();
+    }
+
+    /// One full step with constant torques (mj_step), for benchmarks and passive tests.
+    pub fn step_bare(&mut self, torques: &LegMap<Vector3<f64>>) {
+        for leg in Leg::ALL {
+            let a = self.handles.actuator[leg];
+            for j in 0..3 {
+                self.data.ctrl_mut()[a + j] = torques[leg][j];
+            }
+        }
+        self.data.step();
+    }
+
+    /// Ground-truth state estimate: the simulator's own state, read without noise or delay.
+    /// (A real estimator — IMU + leg kinematics — replaces this on hardware.)
+    pub fn ground_truth_state(&self) -> RobotState {
+        let qpos = self.data.qpos();
+        let qvel = self.data.qvel();
+        let r_world_body = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
+            qpos[3], qpos[4], qpos[5], qpos[6],
+        ));
+        // MuJoCo's free joint: linear velocity in the world frame, angular velocity in the body frame.
+        let omega_body = Vector3::new(qvel[3], qvel[4], qvel[5]);
+        let body = BodyState {
+            p_world: Vector3::new(qpos[0], qpos[1], qpos[2]),
+            r_world_body,
+            v_world: Vector3::new(qvel[0], qvel[1], qvel[2]),
+            omega_world: r_world_body * omega_body,
+        };
+        let joints = LegMap::from_fn(|leg| {
+            let (a, d) = (self.handles.qpos_adr[leg], self.handles.dof_adr[leg]);
+            LegJointState {
+                q: Vector3::new(qpos[a], qpos[a + 1], qpos[a + 2]),
+                qd: Vector3::new(qvel[d], qvel[d + 1], qvel[d + 2]),
+            }
+        });
+        RobotState {
+            time_s: self.time_s(),
+            body,
+            joints,
+        }
+    }
+
+    pub fn time_s(&self) -> f64 {
+        self.data.ffi().time
+    }
+
+    pub fn timestep_s(&self) -> f64 {
+        self.data.model_opt().timestep
+    }
+
+    /// Foot-sphere centres in the world frame, from MuJoCo's kinematics.
+    pub fn foot_positions_world(&self) -> LegMap<Vector3<f64>> {
+        LegMap::from_fn(|leg| Vector3::from(self.data.site_xpos()[self.handles.foot_site[leg]]))
+    }
+
+    /// MuJoCo's translational Jacobian of each foot site w.r.t. that leg's joints, world frame.
+    pub fn foot_jacobian_world(&self, leg: Leg) -> Matrix3<f64> {
+        let p = self.data.site_xpos()[self.handles.foot_site[leg]];
+        let (jacp, _) = self.data.jac(true, false, &p, self.handles.calf_body[leg]);
+        let d = self.handles.dof_adr[leg];
+        Matrix3::from_fn(|i, j| jacp[i * self.nv + d + j])
+    }
+
+    /// Which feet touch the floor (or any terrain geom) now, from MuJoCo's contact list.
+    pub fn foot_contacts(&self) -> LegMap<bool> {
+        let mut touching = LegMap::splat(false);
+        for c in self.data.contact() {
+            for leg in Leg::ALL {
+                let g = self.handles.foot_geom[leg] as i32;
+                if c.geom[0] == g || c.geom[1] == g {
+                    touching[leg] = true;
+                }
+            }
+        }
+        touching
+    }
+
+    /// Applies a force (N, world frame) at the trunk's centre of mass until changed.
+    pub fn set_trunk_force(&mut self, f_world: Vector3<f64>) {
+        let b = self.handles.trunk_body;
+        self.data.xfrc_applied_mut()[b] = [f_world.x, f_world.y, f_world.z, 0.0, 0.0, 0.0];
+    }
+
+    pub fn total_mass_kg(&self) -> f64 {
+        self.total_mass_kg
+    }
+
+    pub fn torque_limit_nm(&self) -> f64 {
+        self.torque_limit_nm
+    }
+
+    pub fn foot_radius_m(&self) -> f64 {
+        self.foot_radius_m
+    }
+
+    pub fn floor_geom(&self) -> usize {
+        self.handles.floor_geom
+    }
+
+    /// Joint torques MuJoCo applied in the last step (after its ctrlrange clamp), N·m.
+    pub fn applied_torques(&self) -> LegMap<Vector3<f64>> {
+        let f = self.data.actuator_force();
+        LegMap::from_fn(|leg| {
+            let a = self.handles.actuator[leg];
+            Vector3::new(f[a], f[a + 1], f[a + 2])
+        })
+    }
+
+    /// Full inverse dynamics for a test: generalized forces for `qacc` at the current state.
+    pub fn inverse_dynamics(&mut self, qacc: &[f64]) -> Vec<f64> {
+        self.data.qacc_mut().copy_from_slice(qacc);
+        self.data.inverse();
+        self.data.qfrc_inverse().to_vec()
+    }
+
+    /// Raw access for tests and tools that need MuJoCo directly (rendering, terrains).
+    pub fn data(&self) -> &MjData<Arc<MjModel>> {
+        &self.data
+    }
+
+    pub fn data_mut(&mut self) -> &mut MjData<Arc<MjModel>> {
+        &mut self.data
+    }
+
+    pub fn dof_adr(&self, leg: Leg) -> usize {
+        self.handles.dof_adr[leg]
+    }
+
+    pub fn nv(&self) -> usize {
+        self.nv
+    }
+}
+
+impl DynamicsModel for Simulation {
+    /// The leg's block of MuJoCo's mass matrix and its rows of qfrc_bias, valid after
+    /// [`Simulation::prepare`].
+    fn leg_dynamics(&self, leg: Leg) -> LegDynamics {
+        let d = self.handles.dof_adr[leg];
+        let nv = self.nv;
+        let bias = self.data.qfrc_bias();
+        LegDynamics {
+            mass_matrix: Matrix3::from_fn(|i, j| self.mass_matrix[(d + i) * nv + d + j]),
+            bias_torque: Vector3::new(bias[d], bias[d + 1], bias[d + 2]),
+        }
+    }
+}

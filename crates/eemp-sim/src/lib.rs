@@ -1,0 +1,8 @@
+//! EEMP simulation: the MuJoCo backend and the closed-loop scenarios built on it.
+
+pub mod backend;
+pub mod closed_loop;
+pub mod mjcf;
+pub mod stand;
+
+pub use backend::{SimError, Simulation};

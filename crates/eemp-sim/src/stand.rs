@@ -1,0 +1,73 @@
+//! The standing scenario: the A1 starts crouched on the ground, rises, and follows a
+//! body-motion profile on four stance legs.
+
+use crate::backend::{SimError, Simulation};
+use crate::closed_loop::{run_closed_loop, FallLimits, LoopStats, Push, StepRecord};
+use crate::mjcf::SceneExtras;
+use eemp_core::config_error::ConfigError;
+use eemp_core::controller::{ControllerConfig, LocomotionController};
+use eemp_core::kinematics::LegKinematics;
+use eemp_core::leg::LegMap;
+use eemp_core::robot::RobotConfig;
+use eemp_core::stand_profile::{BodyMotionProfile, StandPlanner};
+use nalgebra::Vector3;
+
+#[derive(Debug, thiserror::Error)]
+pub enum ScenarioError {
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+    #[error(transparent)]
+    Sim(#[from] SimError),
+}
+
+/// Crouched joint angles the robot starts in: trunk low, feet under the hips.
+pub const CROUCH_POSE_RAD: [f64; 3] = [0.0, 1.25, -2.5];
+
+/// Puts the robot crouched at rest with its feet on the ground; returns the trunk height.
+pub fn reset_crouched(sim: &mut Simulation, robot: &RobotConfig) -> f64 {
+    let kin = LegKinematics::new(robot);
+    let q = LegMap::splat(Vector3::from(CROUCH_POSE_RAD));
+    let foot_z = kin
+        .foot_position_body(eemp_core::Leg::FrontLeft, &q[eemp_core::Leg::FrontLeft])
+        .z;
+    let height = -foot_z + robot.leg.foot_radius_m + 1e-3;
+    sim.reset(Vector3::new(0.0, 0.0, height), &q);
+    height
+}
+
+pub struct StandRun {
+    pub stats: LoopStats,
+    pub planner: StandPlanner,
+}
+
+/// Runs the standing scenario for `duration_s`; `observer` sees every control step.
+pub fn run_stand(
+    robot: &RobotConfig,
+    controller_config: ControllerConfig,
+    profile: BodyMotionProfile,
+    duration_s: f64,
+    pushes: &[Push],
+    observer: impl FnMut(&StepRecord),
+) -> Result<StandRun, ScenarioError> {
+    let mut sim = Simulation::new(robot, &SceneExtras::default())?;
+    let mut controller = LocomotionController::new(robot, controller_config.clone())?;
+    reset_crouched(&mut sim, robot);
+    sim.prepare();
+    let start = sim.ground_truth_state();
+    let planner = StandPlanner::new(
+        profile,
+        &start,
+        controller_config.mpc.horizon,
+        controller_config.mpc.dt_s,
+    )?;
+    let stats = run_closed_loop(
+        &mut sim,
+        &mut controller,
+        duration_s,
+        pushes,
+        FallLimits::default(),
+        |state, feet| planner.plan(state.time_s, feet),
+        observer,
+    );
+    Ok(StandRun { stats, planner })
+}

@@ -1,0 +1,160 @@
+//! The core crate's kinematics and the dynamics the controllers read, checked against MuJoCo.
+
+use eemp_core::kinematics::LegKinematics;
+use eemp_core::leg::{Leg, LegMap};
+use eemp_core::leg_control::{operational_space_mass, DynamicsModel};
+use eemp_core::robot::RobotConfig;
+use eemp_sim::mjcf::SceneExtras;
+use eemp_sim::Simulation;
+use nalgebra::{UnitQuaternion, Vector3};
+use rand::{Rng, SeedableRng};
+
+fn random_pose(rng: &mut impl Rng) -> (Vector3<f64>, UnitQuaternion<f64>, LegMap<Vector3<f64>>) {
+    let p = Vector3::new(
+        rng.random_range(-1.0..1.0),
+        rng.random_range(-1.0..1.0),
+        rng.random_range(2.0..3.0),
+    );
+    let r = UnitQuaternion::from_euler_angles(
+        rng.random_range(-0.5..0.5),
+        rng.random_range(-0.5..0.5),
+        rng.random_range(-3.0..3.0),
+    );
+    let q = LegMap::from_fn(|_| {
+        Vector3::new(
+            rng.random_range(-0.8..0.8),
+            rng.random_range(-1.0..4.1),
+            rng.random_range(-2.69..-0.92),
+        )
+    });
+    (p, r, q)
+}
+
+fn set_pose(
+    sim: &mut Simulation,
+    p: Vector3<f64>,
+    r: UnitQuaternion<f64>,
+    q: &LegMap<Vector3<f64>>,
+) {
+    sim.reset(p, q);
+    let c = r.coords;
+    sim.data_mut().qpos_mut()[3..7].copy_from_slice(&[c.w, c.x, c.y, c.z]);
+    sim.data_mut().forward();
+}
+
+#[test]
+fn foot_positions_and_jacobians_match_mujoco() {
+    let robot = RobotConfig::a1();
+    let kin = LegKinematics::new(&robot);
+    let mut sim = Simulation::new(&robot, &SceneExtras::default()).unwrap();
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+    let mut worst = (0.0f64, 0.0f64);
+    for _ in 0..200 {
+        let (p, r, q) = random_pose(&mut rng);
+        set_pose(&mut sim, p, r, &q);
+        let feet = sim.foot_positions_world();
+        for leg in Leg::ALL {
+            let core = p + r * kin.foot_position_body(leg, &q[leg]);
+            worst.0 = worst.0.max((core - feet[leg]).norm());
+            let jac_core_world =
+                r.to_rotation_matrix().matrix() * kin.foot_jacobian_body(leg, &q[leg]);
+            worst.1 = worst
+                .1
+                .max((jac_core_world - sim.foot_jacobian_world(leg)).abs().max());
+        }
+    }
+    assert!(worst.0 < 1e-9, "worst foot position error {} m", worst.0);
+    assert!(worst.1 < 1e-9, "worst Jacobian entry error {}", worst.1);
+}
+
+#[test]
+fn leg_dynamics_match_mujoco_inverse_dynamics() {
+    // No damping or joint friction, robot in the air: then qfrc_inverse = M q̈ + bias exactly.
+    let mut robot = RobotConfig::a1();
+    robot.leg.damping = [0.0; 3];
+    robot.leg.frictionloss_nm = [0.0; 3];
+    let kin = LegKinematics::new(&robot);
+    let mut sim = Simulation::new(&robot, &SceneExtras::default()).unwrap();
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+    for trial in 0..50 {
+        let (p, r, q) = random_pose(&mut rng);
+        set_pose(&mut sim, p, r, &q);
+        let nv = sim.nv();
+        // Random velocities everywhere (trunk too) for the bias term, except on the first trials
+        // where the Λ check needs q̇ = 0.
+        let moving = trial >= 10;
+        for i in 0..nv {
+            sim.data_mut().qvel_mut()[i] = if moving {
+                rng.random_range(-2.0..2.0)
+            } else {
+                0.0
+            };
+        }
+        sim.prepare();
+        for leg in Leg::ALL {
+            let dynamics = sim.leg_dynamics(leg);
+            let d = sim.dof_adr(leg);
+            let qdd_leg = Vector3::new(
+                rng.random_range(-20.0..20.0),
+                rng.random_range(-20.0..20.0),
+                rng.random_range(-20.0..20.0),
+            );
+            let mut qacc = vec![0.0; nv];
+            qacc[d..d + 3].copy_from_slice(qdd_leg.as_slice());
+            let tau_inv = sim.inverse_dynamics(&qacc);
+            let tau_model = dynamics.mass_matrix * qdd_leg + dynamics.bias_torque;
+            for j in 0..3 {
+                assert!(
+                    (tau_inv[d + j] - tau_model[j]).abs() < 1e-9,
+                    "{leg:?} joint {j}: inverse {} vs M q̈ + b {}",
+                    tau_inv[d + j],
+                    tau_model[j]
+                );
+            }
+            if !moving {
+                // Foot acceleration a (relative to the trunk) at q̇ = 0 needs q̈ = J⁻¹a, so the
+                // torque is M J⁻¹ a + b, which eq. (1)'s Jᵀ Λ a + b must reproduce.
+                let jac = kin.foot_jacobian_body(leg, &q[leg]);
+                if jac.determinant().abs() < 1e-4 {
+                    continue;
+                }
+                let a = Vector3::new(3.0, -2.0, 5.0);
+                let lambda = operational_space_mass(&jac, &dynamics.mass_matrix).unwrap();
+                let qdd = jac.try_inverse().unwrap() * a;
+                let mut qacc = vec![0.0; nv];
+                qacc[d..d + 3].copy_from_slice(qdd.as_slice());
+                let tau_inv = sim.inverse_dynamics(&qacc);
+                let tau_eq1 = jac.transpose() * lambda * a + dynamics.bias_torque;
+                for j in 0..3 {
+                    assert!(
+                        (tau_inv[d + j] - tau_eq1[j]).abs() < 1e-8,
+                        "{leg:?} Λ check joint {j}: {} vs {}",
+                        tau_inv[d + j],
+                        tau_eq1[j]
+                    );
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn composite_body_matches_mujoco_mass_and_com() {
+    let robot = RobotConfig::a1();
+    let mut sim = Simulation::new(&robot, &SceneExtras::default()).unwrap();
+    let q = robot.standing_pose();
+    sim.reset(Vector3::new(0.0, 0.0, 1.0), &q);
+    let body = robot.composite_body(&q);
+    let com_world = sim.data().subtree_com()[1];
+    let expected = Vector3::new(0.0, 0.0, 1.0) + body.com_body;
+    assert!(
+        (Vector3::from(com_world) - expected).norm() < 1e-9,
+        "MuJoCo COM {com_world:?} vs core {expected:?}"
+    );
+    let mujoco_mass: f64 = sim.data().model().body_mass().iter().sum();
+    assert!(
+        (mujoco_mass - body.mass_kg).abs() < 1e-9,
+        "mass {mujoco_mass} vs {}",
+        body.mass_kg
+    );
+}

@@ -1,0 +1,73 @@
+//! Short closed-loop standing runs: rise, hold, follow, absorb a push.
+
+use eemp_core::controller::ControllerConfig;
+use eemp_core::robot::RobotConfig;
+use eemp_core::stand_profile::BodyMotionProfile;
+use eemp_sim::closed_loop::Push;
+use eemp_sim::stand::run_stand;
+use nalgebra::Vector3;
+
+#[test]
+fn rises_and_tracks_the_body_profile() {
+    let robot = RobotConfig::a1();
+    let mut sq_pos = 0.0;
+    let mut sq_rpy = 0.0;
+    let mut n = 0usize;
+    let run = run_stand(
+        &robot,
+        ControllerConfig::default(),
+        BodyMotionProfile::default(),
+        20.0,
+        &[],
+        |r| {
+            if r.state.time_s > 2.5 {
+                let e = r.state.body.p_world - r.plan.body_now.p_world;
+                sq_pos += e.norm_squared();
+                let mut er = r.state.body.rpy() - r.plan.body_now.rpy;
+                er.z = (er.z + std::f64::consts::PI).rem_euclid(2.0 * std::f64::consts::PI)
+                    - std::f64::consts::PI;
+                sq_rpy += er.norm_squared();
+                n += 1;
+            }
+        },
+    )
+    .unwrap();
+    let rmse_pos = (sq_pos / n as f64).sqrt();
+    let rmse_rpy = (sq_rpy / n as f64).sqrt();
+    println!(
+        "rmse pos {rmse_pos} m, rpy {rmse_rpy} rad, mpc failures {}, rtf {}",
+        run.stats.mpc_failures,
+        run.stats.realtime_factor()
+    );
+    assert!(!run.stats.fell, "fell at {:?}", run.stats.fell_at_s);
+    assert!(rmse_pos <= 0.01, "position RMSE {rmse_pos} m");
+    assert!(rmse_rpy <= 0.03, "attitude RMSE {rmse_rpy} rad");
+    assert_eq!(run.stats.mpc_failures, 0);
+}
+
+#[test]
+fn absorbs_a_lateral_push_of_0_3_m_per_s() {
+    let robot = RobotConfig::a1();
+    let mut profile = BodyMotionProfile::default();
+    profile.segments.clear();
+    let push = Push {
+        at_s: 3.0,
+        dv_world: Vector3::new(0.0, 0.3, 0.0),
+    };
+    let mut max_dev: f64 = 0.0;
+    let run = run_stand(
+        &robot,
+        ControllerConfig::default(),
+        profile,
+        6.0,
+        &[push],
+        |r| {
+            if r.state.time_s > 2.5 {
+                max_dev = max_dev.max((r.state.body.p_world - r.plan.body_now.p_world).norm());
+            }
+        },
+    )
+    .unwrap();
+    println!("max deviation after push {max_dev} m");
+    assert!(!run.stats.fell, "fell at {:?}", run.stats.fell_at_s);
+}
