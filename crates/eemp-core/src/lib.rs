@@ -14,6 +14,8 @@ pub mod convex_mpc;
 pub mod kinematics;
 pub mod leg;
 pub mod leg_control;
+pub mod metrics;
+pub mod planner;
 pub mod robot;
 pub mod stand_profile;
 

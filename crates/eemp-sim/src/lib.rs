@@ -4,5 +4,6 @@ pub mod backend;
 pub mod closed_loop;
 pub mod mjcf;
 pub mod stand;
+pub mod walk;
 
 pub use backend::{SimError, Simulation};

@@ -1,0 +1,215 @@
+//! Energy and robustness measures: cost of transport (eq. 8), force manipulability (eq. 9),
+//! velocity tracking.
+
+use crate::convex_mpc::model::GRAVITY;
+use crate::leg::{Leg, LegMap};
+use nalgebra::{Matrix3, Vector3};
+
+/// Eq. (8)'s summand: positive mechanical power of all joints, max(q̇ᵀτ, 0), W. Power the motors
+/// absorb (negative work) is not credited back, as in the paper.
+pub fn positive_power_w(qd: &LegMap<Vector3<f64>>, tau: &LegMap<Vector3<f64>>) -> f64 {
+    Leg::ALL
+        .iter()
+        .map(|l| qd[*l].dot(&tau[*l]))
+        .sum::<f64>()
+        .max(0.0)
+}
+
+/// Eq. (8): CoT = Σ max(q̇ᵀτ, 0)·dt / ΔD, in J/m. `None` when the distance is not positive.
+pub fn cost_of_transport_j_per_m(energy_j: f64, distance_m: f64) -> Option<f64> {
+    (distance_m > 0.0).then(|| energy_j / distance_m)
+}
+
+/// The dimensionless CoT beside eq. (8): E / (m g ΔD).
+pub fn cost_of_transport_dimensionless(
+    energy_j: f64,
+    mass_kg: f64,
+    distance_m: f64,
+) -> Option<f64> {
+    cost_of_transport_j_per_m(energy_j, distance_m).map(|c| c / (mass_kg * GRAVITY))
+}
+
+/// Eq. (9): √(λ_max/λ_min) of U = (J Jᵀ)⁻¹, i.e. the ratio of the longest to the shortest axis
+/// of the force ellipsoid fᵀ J Jᵀ f ≤ 1 (equal to J's condition number σ_max/σ_min).
+///
+/// What "higher" means: the ellipsoid is more elongated. For a stance leg its long axis points
+/// along the leg (roughly the ground normal), so a higher value is a leg that can push much
+/// harder along the normal than tangentially, which the paper reads as a favourable,
+/// non-slipping configuration ("maximise the manipulability measure"). The value is 1 for an
+/// isotropic leg and grows without bound toward a singular (straight) leg. `None` if J is
+/// singular.
+pub fn force_manipulability(jacobian: &Matrix3<f64>) -> Option<f64> {
+    let jjt = jacobian * jacobian.transpose();
+    let u = jjt.try_inverse()?;
+    let eig = u.symmetric_eigen().eigenvalues;
+    let (min, max) = (eig.min(), eig.max());
+    (min > 0.0).then(|| (max / min).sqrt())
+}
+
+/// Running sums over a run; `finish` turns them into [`WalkMetrics`].
+#[derive(Clone, Debug, Default)]
+pub struct MetricsAccumulator {
+    pub energy_j: f64,
+    start_xy: Option<[f64; 2]>,
+    end_xy: [f64; 2],
+    path_m: f64,
+    sq_vel_err: f64,
+    vel_samples: usize,
+    manip_sum: f64,
+    manip_samples: usize,
+    all_stance_time_s: f64,
+    time_s: f64,
+}
+
+/// Summary metrics of a run (over the measured window).
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct WalkMetrics {
+    /// Horizontal straight-line distance from the window's start to its end, m (ΔD of eq. 8).
+    pub distance_m: f64,
+    /// Horizontal path length, m.
+    pub path_length_m: f64,
+    pub energy_j: f64,
+    pub cot_j_per_m: Option<f64>,
+    pub cot: Option<f64>,
+    pub manipulability: Option<f64>,
+    pub vel_rmse_mps: Option<f64>,
+    pub all_stance_fraction: f64,
+    pub duration_s: f64,
+}
+
+impl MetricsAccumulator {
+    /// One control step of length `dt`: body position, body velocity and command in the heading
+    /// frame, joint velocities and applied torques, stance set and the stance legs' Jacobians.
+    #[allow(clippy::too_many_arguments)]
+    pub fn observe(
+        &mut self,
+        dt: f64,
+        p_world: &Vector3<f64>,
+        v_heading: &Vector3<f64>,
+        v_command_xy: [f64; 2],
+        qd: &LegMap<Vector3<f64>>,
+        tau: &LegMap<Vector3<f64>>,
+        stance: &LegMap<bool>,
+        jacobians: &LegMap<Matrix3<f64>>,
+    ) {
+        let xy = [p_world.x, p_world.y];
+        if self.start_xy.is_none() {
+            self.start_xy = Some(xy);
+        } else {
+            self.path_m +=
+                ((xy[0] - self.end_xy[0]).powi(2) + (xy[1] - self.end_xy[1]).powi(2)).sqrt();
+        }
+        self.end_xy = xy;
+        self.energy_j += positive_power_w(qd, tau) * dt;
+        self.sq_vel_err +=
+            (v_heading.x - v_command_xy[0]).powi(2) + (v_heading.y - v_command_xy[1]).powi(2);
+        self.vel_samples += 1;
+        let mut n_stance = 0;
+        for leg in Leg::ALL {
+            if stance[leg] {
+                n_stance += 1;
+                if let Some(m) = force_manipulability(&jacobians[leg]) {
+                    self.manip_sum += m;
+                    self.manip_samples += 1;
+                }
+            }
+        }
+        if n_stance == 4 {
+            self.all_stance_time_s += dt;
+        }
+        self.time_s += dt;
+    }
+
+    pub fn finish(&self, mass_kg: f64) -> WalkMetrics {
+        let start = self.start_xy.unwrap_or(self.end_xy);
+        let distance =
+            ((self.end_xy[0] - start[0]).powi(2) + (self.end_xy[1] - start[1]).powi(2)).sqrt();
+        WalkMetrics {
+            distance_m: distance,
+            path_length_m: self.path_m,
+            energy_j: self.energy_j,
+            cot_j_per_m: cost_of_transport_j_per_m(self.energy_j, distance),
+            cot: cost_of_transport_dimensionless(self.energy_j, mass_kg, distance),
+            manipulability: (self.manip_samples > 0)
+                .then(|| self.manip_sum / self.manip_samples as f64),
+            vel_rmse_mps: (self.vel_samples > 0)
+                .then(|| (self.sq_vel_err / self.vel_samples as f64).sqrt()),
+            all_stance_fraction: if self.time_s > 0.0 {
+                self.all_stance_time_s / self.time_s
+            } else {
+                0.0
+            },
+            duration_s: self.time_s,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cost_of_transport_by_hand() {
+        // Two steps of 0.5 s: power +20 W then −10 W (not credited): E = 10 J over 2 m → 5 J/m.
+        let qd = LegMap::from_fn(|l| {
+            if l == Leg::FrontLeft {
+                Vector3::new(2.0, 0.0, 0.0)
+            } else {
+                Vector3::zeros()
+            }
+        });
+        let tau_pos = LegMap::from_fn(|_| Vector3::new(10.0, 3.0, 3.0));
+        let tau_neg = LegMap::from_fn(|_| Vector3::new(-5.0, 0.0, 0.0));
+        let e = positive_power_w(&qd, &tau_pos) * 0.5 + positive_power_w(&qd, &tau_neg) * 0.5;
+        assert_eq!(e, 10.0);
+        assert_eq!(cost_of_transport_j_per_m(e, 2.0), Some(5.0));
+        assert!(
+            (cost_of_transport_dimensionless(e, 10.0, 2.0).unwrap() - 5.0 / 98.1).abs() < 1e-12
+        );
+        assert_eq!(cost_of_transport_j_per_m(e, 0.0), None);
+    }
+
+    #[test]
+    fn manipulability_by_hand() {
+        // J = diag(1, 2, 4): JJᵀ = diag(1, 4, 16), U = diag(1, 1/4, 1/16): √(1/(1/16)) = 4.
+        assert!(
+            (force_manipulability(&Matrix3::from_diagonal(&Vector3::new(1.0, 2.0, 4.0))).unwrap()
+                - 4.0)
+                .abs()
+                < 1e-12
+        );
+        assert!((force_manipulability(&Matrix3::identity()).unwrap() - 1.0).abs() < 1e-12);
+        // A rotation does not change it (second method: singular values).
+        let r = nalgebra::Rotation3::from_euler_angles(0.3, -0.2, 1.0);
+        let j = r.matrix() * Matrix3::from_diagonal(&Vector3::new(0.3, 0.2, 0.05));
+        let svd = j.svd(false, false).singular_values;
+        assert!((force_manipulability(&j).unwrap() - svd.max() / svd.min()).abs() < 1e-9);
+        assert_eq!(force_manipulability(&Matrix3::zeros()), None);
+    }
+
+    #[test]
+    fn accumulator_reports_distance_tracking_and_stance_fraction() {
+        let mut acc = MetricsAccumulator::default();
+        let zero = LegMap::splat(Vector3::zeros());
+        let jac = LegMap::splat(Matrix3::identity());
+        for i in 0..100 {
+            let all = i < 25;
+            let stance = LegMap::from_fn(|l| all || l == Leg::FrontLeft || l == Leg::RearRight);
+            acc.observe(
+                0.01,
+                &Vector3::new(i as f64 * 0.003, 0.0, 0.3),
+                &Vector3::new(0.3, 0.0, 0.0),
+                [0.4, 0.0],
+                &zero,
+                &zero,
+                &stance,
+                &jac,
+            );
+        }
+        let m = acc.finish(12.0);
+        assert!((m.distance_m - 0.297).abs() < 1e-12);
+        assert!((m.vel_rmse_mps.unwrap() - 0.1).abs() < 1e-12);
+        assert!((m.all_stance_fraction - 0.25).abs() < 1e-12);
+        assert_eq!(m.manipulability, Some(1.0));
+    }
+}

@@ -1,0 +1,342 @@
+//! The energy-efficient motion planner, Algorithm 1 of the paper.
+//!
+//! Every control step: finish a swing whose ΔT has elapsed; if no swing is running, check
+//! eq. (5) for every stance foot and, when one has left its ellipse, start the swing the gait
+//! rule picks (touchdown by eq. (6), trajectory by eq. (7)). The body reference is the Euler
+//! integral of the commanded velocity from the current state, so with all feet inside their
+//! ellipses the MPC keeps pushing the body along on four stance legs.
+
+pub mod ellipse;
+pub mod gait;
+pub mod params;
+pub mod swing_trajectory;
+pub mod touchdown;
+
+use crate::body_reference::BodyReference;
+use crate::body_state::RobotState;
+use crate::config_error::{check_range, ConfigError};
+use crate::controller::Plan;
+use crate::kinematics::LegKinematics;
+use crate::leg::{Leg, LegMap};
+use crate::leg_control::FootReference;
+pub use gait::Gait;
+use nalgebra::{Rotation3, Vector2, Vector3};
+pub use params::PlannerParams;
+use serde::{Deserialize, Serialize};
+pub use swing_trajectory::SwingTrajectory;
+
+/// Settings of the planner other than the five tuned parameters.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct PlannerConfig {
+    pub gait: Gait,
+    /// Factor on V_des·ΔT in eq. (6): ½ as in the paper's eq. (6) (default), 1 as in its
+    /// Algorithm 1.
+    pub progress_factor: f64,
+    /// The body reference follows a step in the command at most this fast, m/s² (the MPC
+    /// otherwise asks for forces the friction cone cannot give).
+    pub max_accel_mps2: f64,
+}
+
+impl Default for PlannerConfig {
+    fn default() -> Self {
+        PlannerConfig {
+            gait: Gait::Trot,
+            progress_factor: 0.5,
+            max_accel_mps2: 1.0,
+        }
+    }
+}
+
+impl PlannerConfig {
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        check_range("planner.progress_factor", self.progress_factor, 0.0, 2.0)?;
+        check_range("planner.max_accel_mps2", self.max_accel_mps2, 0.05, 20.0)
+    }
+}
+
+/// The operator's command in the heading frame (yaw-aligned, horizontal).
+#[derive(Clone, Copy, Debug, PartialEq, Default, Serialize, Deserialize)]
+pub struct VelocityCommand {
+    /// Forward speed, m/s.
+    pub vx_mps: f64,
+    /// Lateral speed (left positive), m/s.
+    pub vy_mps: f64,
+    /// Yaw rate, rad/s.
+    pub yaw_rate_rps: f64,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+struct ActiveSwing {
+    start_s: f64,
+    duration_s: f64,
+    legs: Vec<Leg>,
+    trajectories: LegMap<Option<SwingTrajectory>>,
+    /// Predicted touchdown point (world), for the MPC's view of the horizon.
+    touchdown_world: LegMap<Vector3<f64>>,
+}
+
+impl ActiveSwing {
+    fn covers(&self, t: f64) -> bool {
+        t >= self.start_s && t < self.start_s + self.duration_s
+    }
+}
+
+/// Algorithm 1 with its memory: the running swing, the previous swing's legs, step counts.
+pub struct EemPlanner {
+    config: PlannerConfig,
+    kinematics: LegKinematics,
+    foot_radius_m: f64,
+    horizon: usize,
+    dt_s: f64,
+    swing: Option<ActiveSwing>,
+    previous_legs: Vec<Leg>,
+    steps: LegMap<usize>,
+    /// Slew-limited velocity reference (heading frame), m/s.
+    v_ref: Vector2<f64>,
+    last_t: Option<f64>,
+}
+
+impl EemPlanner {
+    pub fn new(
+        config: PlannerConfig,
+        kinematics: LegKinematics,
+        foot_radius_m: f64,
+        horizon: usize,
+        dt_s: f64,
+    ) -> Result<Self, ConfigError> {
+        config.validate()?;
+        Ok(EemPlanner {
+            config,
+            kinematics,
+            foot_radius_m,
+            horizon,
+            dt_s,
+            swing: None,
+            previous_legs: Vec::new(),
+            steps: LegMap::splat(0),
+            v_ref: Vector2::zeros(),
+            last_t: None,
+        })
+    }
+
+    pub fn config(&self) -> &PlannerConfig {
+        &self.config
+    }
+
+    /// Number of swings started per leg so far.
+    pub fn steps(&self) -> LegMap<usize> {
+        self.steps
+    }
+
+    /// eq. (5)'s left-hand side for every foot, using the heading frame (yaw only).
+    pub fn ellipse_values(
+        &self,
+        state: &RobotState,
+        feet_world: &LegMap<Vector3<f64>>,
+        params: &PlannerParams,
+    ) -> LegMap<f64> {
+        LegMap::from_fn(|leg| {
+            ellipse::ellipse_value(
+                &self.p_ell(leg, state, feet_world),
+                params.ellipse_rx_m,
+                params.ellipse_ry_m,
+            )
+        })
+    }
+
+    /// Foot relative to its ellipse centre (the nominal foothold under the hip), heading frame.
+    fn p_ell(
+        &self,
+        leg: Leg,
+        state: &RobotState,
+        feet_world: &LegMap<Vector3<f64>>,
+    ) -> Vector2<f64> {
+        let body = &state.body;
+        let centre_world =
+            body.p_world + body.r_world_body * self.kinematics.nominal_foot_body(leg);
+        let yaw = body.rpy().z;
+        let d =
+            Rotation3::from_axis_angle(&Vector3::z_axis(), -yaw) * (feet_world[leg] - centre_world);
+        Vector2::new(d.x, d.y)
+    }
+
+    /// One iteration of Algorithm 1 at time `t` (s).
+    pub fn plan(
+        &mut self,
+        t: f64,
+        state: &RobotState,
+        feet_world: &LegMap<Vector3<f64>>,
+        command: &VelocityCommand,
+        params: &PlannerParams,
+    ) -> Plan {
+        let body = &state.body;
+        let yaw = body.rpy().z;
+        let heading = Rotation3::from_axis_angle(&Vector3::z_axis(), yaw);
+        let dt_ctrl = self.last_t.map(|lt| (t - lt).max(0.0)).unwrap_or(0.0);
+        self.last_t = Some(t);
+        let v_cmd = Vector2::new(command.vx_mps, command.vy_mps);
+        let dv = v_cmd - self.v_ref;
+        let max_dv = self.config.max_accel_mps2 * dt_ctrl;
+        self.v_ref += if dv.norm() > max_dv {
+            dv * (max_dv / dv.norm())
+        } else {
+            dv
+        };
+
+        // "Swing phase complete": the legs land and rejoin the stance set.
+        if self
+            .swing
+            .as_ref()
+            .is_some_and(|s| t >= s.start_s + s.duration_s)
+        {
+            self.swing = None;
+        }
+        // Stance feet on the ground: the ground height under the robot.
+        let stance_now = |swing: &Option<ActiveSwing>| {
+            LegMap::from_fn(|leg| swing.as_ref().is_none_or(|s| !s.legs.contains(&leg)))
+        };
+        let stance = stance_now(&self.swing);
+        let (sum_z, n_z) = Leg::ALL
+            .iter()
+            .filter(|l| stance[**l])
+            .fold((0.0, 0usize), |(s, n), l| (s + feet_world[*l].z, n + 1));
+        let ground_z = if n_z > 0 {
+            sum_z / n_z as f64 - self.foot_radius_m
+        } else {
+            0.0
+        };
+
+        if self.swing.is_none() {
+            let values = self.ellipse_values(state, feet_world, params);
+            let legs = gait::next_swing(self.config.gait, &values, &self.previous_legs);
+            if !legs.is_empty() {
+                self.swing = Some(self.start_swing(t, state, feet_world, &legs, params, ground_z));
+                self.previous_legs = legs.clone();
+                for leg in legs {
+                    self.steps[leg] += 1;
+                }
+            }
+        }
+        let stance = stance_now(&self.swing);
+
+        // Body reference: Euler integration of the commanded velocity from the current state.
+        let reference_at = |tau: f64| -> BodyReference {
+            let yaw_tau = yaw + command.yaw_rate_rps * tau;
+            let v_world = Rotation3::from_axis_angle(&Vector3::z_axis(), yaw_tau)
+                * Vector3::new(self.v_ref.x, self.v_ref.y, 0.0);
+            let mut p =
+                body.p_world + heading * Vector3::new(self.v_ref.x, self.v_ref.y, 0.0) * tau;
+            p.z = ground_z + params.body_height_m;
+            BodyReference {
+                rpy: Vector3::new(0.0, 0.0, yaw_tau),
+                p_world: p,
+                omega_world: Vector3::new(0.0, 0.0, command.yaw_rate_rps),
+                v_world,
+            }
+        };
+        let n = self.horizon;
+        let mut contacts_horizon = Vec::with_capacity(n);
+        let mut feet_horizon_world = Vec::with_capacity(n);
+        for k in 0..n {
+            let tk = t + k as f64 * self.dt_s;
+            let mut contacts = LegMap::splat(true);
+            let mut feet = *feet_world;
+            if let Some(s) = &self.swing {
+                for leg in &s.legs {
+                    if s.covers(tk) {
+                        contacts[*leg] = false;
+                    } else {
+                        feet[*leg] = s.touchdown_world[*leg];
+                    }
+                }
+            }
+            contacts_horizon.push(contacts);
+            feet_horizon_world.push(feet);
+        }
+        let swing = LegMap::from_fn(|leg| {
+            self.swing.as_ref().and_then(|s| {
+                s.trajectories[leg].map(|tr| world_to_body(&tr.sample(t - s.start_s), state))
+            })
+        });
+        Plan {
+            stance,
+            swing,
+            body_now: reference_at(0.0),
+            body_horizon: (1..=n)
+                .map(|k| reference_at(k as f64 * self.dt_s))
+                .collect(),
+            feet_horizon_world,
+            contacts_horizon,
+        }
+    }
+
+    fn start_swing(
+        &self,
+        t: f64,
+        state: &RobotState,
+        feet_world: &LegMap<Vector3<f64>>,
+        legs: &[Leg],
+        params: &PlannerParams,
+        ground_z: f64,
+    ) -> ActiveSwing {
+        let body = &state.body;
+        let yaw = body.rpy().z;
+        let heading = Rotation3::from_axis_angle(&Vector3::z_axis(), yaw);
+        let v_cur = body.v_heading();
+        let prog = touchdown::progress(
+            &self.v_ref,
+            &Vector2::new(v_cur.x, v_cur.y),
+            params.swing_time_s,
+            params.body_height_m,
+            self.config.progress_factor,
+        );
+        let mut trajectories = LegMap::splat(None);
+        let mut touchdown_world = *feet_world;
+        for leg in legs {
+            // Eq. (7)'s displacement p_prog − p_ell is relative to the hip; the hip itself moves
+            // with the body during the swing. Laying the sinusoids in the world frame from the
+            // lift-off point to (hip at touchdown + p_prog) lands the foot at the same place as
+            // the paper's construction but with zero ground speed; a trajectory fixed to the
+            // trunk would touch down moving at the trunk's speed and skid.
+            let p_ell = self.p_ell(*leg, state, feet_world);
+            let travel =
+                heading * Vector3::new(self.v_ref.x, self.v_ref.y, 0.0) * params.swing_time_s;
+            let displacement_world =
+                travel + heading * Vector3::new(prog.x - p_ell.x, prog.y - p_ell.y, 0.0);
+            let start = feet_world[*leg];
+            trajectories[*leg] = Some(SwingTrajectory {
+                start_body: start,
+                displacement_xy: Vector2::new(displacement_world.x, displacement_world.y),
+                step_height_m: params.step_height_m,
+                duration_s: params.swing_time_s,
+            });
+            let mut td = start + displacement_world;
+            td.z = ground_z + self.foot_radius_m;
+            touchdown_world[*leg] = td;
+        }
+        ActiveSwing {
+            start_s: t,
+            duration_s: params.swing_time_s,
+            legs: legs.to_vec(),
+            trajectories,
+            touchdown_world,
+        }
+    }
+}
+
+/// A world-frame foot reference seen from the moving trunk (eq. 1 works in the body frame):
+/// p_b = Rᵀ(p − p_B), v_b = Rᵀ(v − v_B − ω × (p − p_B)), a_b ≈ Rᵀa (trunk acceleration unknown).
+fn world_to_body(reference: &FootReference, state: &RobotState) -> FootReference {
+    let body = &state.body;
+    let r_inv = body.r_world_body.inverse();
+    let rel = reference.p_body - body.p_world;
+    FootReference {
+        p_body: r_inv * rel,
+        v_body: r_inv * (reference.v_body - body.v_world - body.omega_world.cross(&rel)),
+        a_body: r_inv * reference.a_body,
+    }
+}
+
+#[cfg(test)]
+mod tests;

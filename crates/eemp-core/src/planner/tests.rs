@@ -1,0 +1,126 @@
+use super::*;
+use crate::body_state::{BodyState, LegJointState};
+use crate::robot::RobotConfig;
+use nalgebra::UnitQuaternion;
+
+fn standing(kin: &LegKinematics, x: f64) -> (RobotState, LegMap<Vector3<f64>>) {
+    let height = 0.31;
+    let feet_world = LegMap::from_fn(|leg| {
+        let mut p = kin.nominal_foot_body(leg);
+        p.z = 0.02;
+        p
+    });
+    let body = BodyState {
+        p_world: Vector3::new(x, 0.0, height),
+        r_world_body: UnitQuaternion::identity(),
+        v_world: Vector3::new(0.1, 0.0, 0.0),
+        omega_world: Vector3::zeros(),
+    };
+    let joints = LegMap::from_fn(|leg| LegJointState {
+        q: kin.inverse(leg, &(feet_world[leg] - body.p_world)).unwrap(),
+        qd: Vector3::zeros(),
+    });
+    (
+        RobotState {
+            time_s: 0.0,
+            body,
+            joints,
+        },
+        feet_world,
+    )
+}
+
+fn planner(gait: Gait) -> EemPlanner {
+    let robot = RobotConfig::a1();
+    EemPlanner::new(
+        PlannerConfig {
+            gait,
+            ..Default::default()
+        },
+        LegKinematics::new(&robot),
+        0.02,
+        10,
+        0.025,
+    )
+    .unwrap()
+}
+
+#[test]
+fn all_feet_inside_means_four_stance_legs_and_a_moving_body_reference() {
+    let mut p = planner(Gait::Trot);
+    let kin = LegKinematics::new(&RobotConfig::a1());
+    let (state, feet) = standing(&kin, 0.03);
+    let cmd = VelocityCommand {
+        vx_mps: 0.1,
+        ..Default::default()
+    };
+    let params = PlannerParams::default();
+    p.plan(0.0, &state, &feet, &cmd, &params);
+    let plan = p.plan(1.0, &state, &feet, &cmd, &params);
+    assert_eq!(plan.stance, LegMap::splat(true));
+    assert!(plan
+        .contacts_horizon
+        .iter()
+        .all(|c| *c == LegMap::splat(true)));
+    // The reference moves forward at the command along the horizon.
+    let dx = plan.body_horizon[9].p_world.x - plan.body_now.p_world.x;
+    assert!((dx - 0.1 * 0.25).abs() < 1e-12, "{dx}");
+    assert!((plan.body_now.p_world.z - 0.31).abs() < 1e-12);
+}
+
+#[test]
+fn a_foot_outside_its_ellipse_starts_a_swing_to_the_hip_plus_progress() {
+    let mut p = planner(Gait::Trot);
+    let kin = LegKinematics::new(&RobotConfig::a1());
+    // Body 8 cm ahead of the feet: every foot is 8 cm behind its hip, beyond r_x = 7 cm.
+    let (state, feet) = standing(&kin, 0.08);
+    let cmd = VelocityCommand::default();
+    let params = PlannerParams::default();
+    let plan = p.plan(0.0, &state, &feet, &cmd, &params);
+    let swinging: Vec<Leg> = Leg::ALL.into_iter().filter(|l| !plan.stance[*l]).collect();
+    assert_eq!(swinging.len(), 2, "a trot pair swings");
+    assert_eq!(swinging[0].diagonal(), swinging[1]);
+    let leg = swinging[0];
+    let tr = p.swing.as_ref().unwrap().trajectories[leg].unwrap();
+    // Command 0 (so no hip travel), body velocity 0.1: p_prog = √(0.31/9.81)·0.1 in x and
+    // p_ell = −0.08 in x; the world displacement is p_prog − p_ell.
+    let k = (0.31f64 / 9.81).sqrt();
+    assert!(
+        (tr.displacement_xy.x - (0.1 * k + 0.08)).abs() < 1e-9,
+        "{:?}",
+        tr.displacement_xy
+    );
+    assert!(tr.displacement_xy.y.abs() < 1e-9);
+    // The horizon has the legs in the air for ΔT = 0.25 s = 10 steps of 25 ms, then back.
+    assert!(plan.contacts_horizon.iter().all(|c| !c[leg]));
+    let later = p.plan(0.26, &state, &feet, &cmd, &params);
+    assert!(
+        later.stance[leg] || p.swing.as_ref().is_some_and(|s| !s.legs.contains(&leg)),
+        "swing ended after ΔT"
+    );
+    assert_eq!(p.steps()[leg], 1);
+}
+
+#[test]
+fn no_new_swing_starts_while_one_is_running() {
+    let mut p = planner(Gait::Walk);
+    let kin = LegKinematics::new(&RobotConfig::a1());
+    let (state, feet) = standing(&kin, 0.08);
+    let params = PlannerParams::default();
+    let first = p.plan(0.0, &state, &feet, &VelocityCommand::default(), &params);
+    assert_eq!(
+        first.stance.0.iter().filter(|s| !**s).count(),
+        1,
+        "walk: one leg"
+    );
+    for i in 1..10 {
+        let plan = p.plan(
+            i as f64 * 0.02,
+            &state,
+            &feet,
+            &VelocityCommand::default(),
+            &params,
+        );
+        assert_eq!(plan.stance, first.stance, "same swing continues");
+    }
+}
