@@ -1,2 +1,6 @@
 //! Library side of the `eemp` command: plotting helpers shared by its subcommands.
+pub mod bench;
+pub mod output;
 pub mod plots;
+pub mod stand_cmd;
+pub mod walk_cmd;

@@ -6,6 +6,9 @@
 //! - [`planner`]: the energy-efficient planner, eqs. (5)–(7) and Algorithm 1.
 //! - [`metrics`]: cost of transport (eq. 8) and force manipulability (eq. 9).
 
+// Horizon and block indices (k, l, j) are the mathematics here; iterator chains would hide them.
+#![allow(clippy::needless_range_loop)]
+
 pub mod body_reference;
 pub mod body_state;
 pub mod config_error;

@@ -150,7 +150,7 @@ impl RobotConfig {
             ("leg.thigh_range_rad", l.thigh_range_rad),
             ("leg.calf_range_rad", l.calf_range_rad),
         ] {
-            if !(r[0] < r[1]) {
+            if r[0].partial_cmp(&r[1]) != Some(std::cmp::Ordering::Less) {
                 return Err(ConfigError::Invalid {
                     name: name.to_string(),
                     message: format!("min {} must be below max {}", r[0], r[1]),

@@ -145,8 +145,8 @@ pub fn run_closed_loop(
         pending.retain(|p| {
             if sim.time_s() - t_start >= p.at_s {
                 let qvel = sim.data_mut().qvel_mut();
-                for i in 0..3 {
-                    qvel[i] += p.dv_world[i];
+                for (v, dv) in qvel[..3].iter_mut().zip(p.dv_world.iter()) {
+                    *v += dv;
                 }
                 false
             } else {

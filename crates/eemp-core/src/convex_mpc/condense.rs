@@ -12,6 +12,7 @@ use nalgebra::{DMatrix, DVector, SMatrix};
 
 /// Fills `h` (N·NU square, full symmetric) and `g` (N·NU) for the given model and references.
 /// `q_diag` are the state weights, `r_diag` the force weights (per force component).
+#[allow(clippy::too_many_arguments)] // model, references, weights and two outputs: all needed, none related
 pub fn condense(
     a: &StateMatrix,
     b: &[InputMatrix],

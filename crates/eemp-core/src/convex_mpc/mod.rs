@@ -56,10 +56,13 @@ impl Default for MpcConfig {
             friction_coefficient: 0.6,
             f_min_n: 0.0,
             f_max_n: 160.0,
-            weight_rpy: [100.0, 100.0, 50.0],
-            weight_position: [50.0, 50.0, 200.0],
-            weight_omega: [0.5, 0.5, 0.5],
-            weight_velocity: [5.0, 5.0, 5.0],
+            // The MIT Cheetah ratios (×10): light roll/pitch, heavy height and yaw, no roll/pitch
+            // rate term. Heavier roll/pitch weights made the trot sway laterally until it fell
+            // (the MPC gave up lateral velocity to hold attitude on two diagonal feet).
+            weight_rpy: [2.5, 2.5, 100.0],
+            weight_position: [20.0, 20.0, 500.0],
+            weight_omega: [0.0, 0.0, 3.0],
+            weight_velocity: [2.0, 2.0, 1.0],
             weight_force: 1e-5,
             solver: QpSolverKind::Quadprog,
             drop_swing_forces: true,

@@ -1,0 +1,312 @@
+//! `eemp walk`: the A1 walking under EEMP, with its energy and robustness metrics.
+
+use crate::output::{create_dir, write_json, Trace};
+use crate::plots::{gait_diagram, line_panels, Panel, Series};
+use eemp_core::config_error::load_toml;
+use eemp_core::leg::Leg;
+use eemp_core::metrics::positive_power_w;
+use eemp_core::planner::{Gait, PlannerConfig, PlannerParams, VelocityCommand};
+use eemp_core::robot::RobotConfig;
+use eemp_sim::closed_loop::Push;
+use eemp_sim::walk::{run_walk, VelocityProfile, WalkSpec};
+use nalgebra::Vector3;
+use std::path::PathBuf;
+
+#[derive(clap::Args, Debug)]
+pub struct WalkArgs {
+    /// trot, walk or free (no predetermined order).
+    #[arg(long, default_value = "trot")]
+    pub gait: String,
+    /// Forward speed command, m/s (heading frame). Ignored with --profile.
+    #[arg(long, default_value_t = 0.3)]
+    pub speed: f64,
+    /// Lateral speed command, m/s.
+    #[arg(long, default_value_t = 0.0)]
+    pub lateral: f64,
+    /// Yaw-rate command, rad/s.
+    #[arg(long, default_value_t = 0.0)]
+    pub yaw_rate: f64,
+    /// Velocity profile (TOML `[[segment]]` tables: start_s, vx_mps, vy_mps, yaw_rate_rps) in place of --speed.
+    #[arg(long)]
+    pub profile: Option<PathBuf>,
+    /// Simulated seconds.
+    #[arg(long, default_value_t = 20.0)]
+    pub duration: f64,
+    /// Planner parameters (TOML: swing_time_s, step_height_m, body_height_m, ellipse_rx_m,
+    /// ellipse_ry_m); default: the paper's Table II.
+    #[arg(long)]
+    pub params: Option<PathBuf>,
+    /// Factor on V·ΔT in eq. (6): 0.5 = the paper's eq. (6) (default), 1.0 = its Algorithm 1.
+    #[arg(long, default_value_t = 0.5)]
+    pub progress_factor: f64,
+    /// Floor friction coefficient (slippery ground below ~0.4); default: the robot file's.
+    #[arg(long)]
+    pub friction: Option<f64>,
+    /// Apply a push at this time (s): a sudden lateral change of the trunk velocity.
+    #[arg(long)]
+    pub push_at: Option<f64>,
+    /// Lateral velocity change of the push, m/s.
+    #[arg(long, default_value_t = 0.3)]
+    pub push_dv: f64,
+    #[arg(long)]
+    pub robot: Option<PathBuf>,
+    #[arg(long, default_value = "out/walk")]
+    pub out: PathBuf,
+}
+
+pub fn run(args: &WalkArgs) -> Result<(), String> {
+    let gait: Gait = args.gait.parse()?;
+    if !(args.duration.is_finite() && args.duration > 0.0 && args.duration <= 3600.0) {
+        return Err(format!(
+            "--duration {} is out of range: allowed (0, 3600] s",
+            args.duration
+        ));
+    }
+    let robot = match &args.robot {
+        Some(p) => RobotConfig::load(p).map_err(|e| e.to_string())?,
+        None => RobotConfig::a1(),
+    };
+    let params: PlannerParams = match &args.params {
+        Some(p) => load_toml(p).map_err(|e| e.to_string())?,
+        None => PlannerParams::default(),
+    };
+    let planner = PlannerConfig {
+        gait,
+        progress_factor: args.progress_factor,
+        ..Default::default()
+    };
+    let command = VelocityCommand {
+        vx_mps: args.speed,
+        vy_mps: args.lateral,
+        yaw_rate_rps: args.yaw_rate,
+    };
+    let mut spec = WalkSpec::constant(planner, params, command, args.duration);
+    if let Some(p) = &args.profile {
+        spec.profile = load_toml::<VelocityProfile>(p).map_err(|e| e.to_string())?;
+    }
+    spec.floor_friction = args.friction;
+    if let Some(at) = args.push_at {
+        if !(at.is_finite() && at >= 0.0 && at < args.duration) {
+            return Err(format!(
+                "--push-at {at} is out of range: allowed [0, duration {})",
+                args.duration
+            ));
+        }
+        spec.pushes.push(Push {
+            at_s: at,
+            dv_world: Vector3::new(0.0, args.push_dv, 0.0),
+        });
+    }
+    spec.validate().map_err(|e| e.to_string())?;
+
+    create_dir(&args.out).map_err(|e| e.to_string())?;
+    let mut header: Vec<String> = [
+        "time_s",
+        "x_m",
+        "y_m",
+        "z_m",
+        "roll_rad",
+        "pitch_rad",
+        "yaw_rad",
+        "vx_mps",
+        "vy_mps",
+        "vz_mps",
+        "cmd_vx_mps",
+        "cmd_vy_mps",
+        "cmd_yaw_rate_rps",
+        "power_w",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    for leg in Leg::ALL {
+        let n = leg.short_name();
+        header.extend([
+            format!("{n}_foot_x_m"),
+            format!("{n}_foot_y_m"),
+            format!("{n}_foot_z_m"),
+            format!("{n}_foot_z_ref_body_m"),
+            format!("{n}_stance_cmd"),
+            format!("{n}_contact"),
+        ]);
+        header.extend((0..3).map(|j| format!("{n}_tau{j}_nm")));
+        header.extend((0..3).map(|j| format!("{n}_qd{j}_radps")));
+    }
+    let mut trace =
+        Trace::create(&args.out.join("trace.csv"), &header).map_err(|e| e.to_string())?;
+    let mut write_error = None;
+    let (mut t, mut vx, mut vy, mut cvx, mut cvy) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let mut foot_z: [Vec<f64>; 4] = Default::default();
+    let mut stance: Vec<[bool; 4]> = Vec::new();
+    let mut i = 0usize;
+    let run = run_walk(&robot, &spec, |r| {
+        let s = &r.state.body;
+        let rpy = s.rpy();
+        let v = s.v_heading();
+        let cmd = spec.profile.command_at(r.state.time_s);
+        let qd = r.state.joints.map(|_, j| j.qd);
+        let mut row = vec![
+            r.state.time_s,
+            s.p_world.x,
+            s.p_world.y,
+            s.p_world.z,
+            rpy.x,
+            rpy.y,
+            rpy.z,
+            v.x,
+            v.y,
+            v.z,
+            cmd.vx_mps,
+            cmd.vy_mps,
+            cmd.yaw_rate_rps,
+            positive_power_w(&qd, &r.output.torques),
+        ];
+        for leg in Leg::ALL {
+            let f = r.feet_world[leg];
+            let z_ref = r.plan.swing[leg].map(|sw| sw.p_body.z).unwrap_or(f64::NAN);
+            row.extend([
+                f.x,
+                f.y,
+                f.z,
+                z_ref,
+                r.plan.stance[leg] as u8 as f64,
+                r.contacts[leg] as u8 as f64,
+            ]);
+            row.extend(r.output.torques[leg].iter());
+            row.extend(qd[leg].iter());
+        }
+        if let Err(e) = trace.row(&row) {
+            write_error.get_or_insert(e);
+        }
+        // Figures at 100 Hz are plenty.
+        if i.is_multiple_of(10) {
+            t.push(r.state.time_s);
+            vx.push(v.x);
+            vy.push(v.y);
+            cvx.push(cmd.vx_mps);
+            cvy.push(cmd.vy_mps);
+            for leg in Leg::ALL {
+                foot_z[leg.index()].push(r.feet_world[leg].z);
+            }
+            stance.push(r.plan.stance.0);
+        }
+        i += 1;
+    })
+    .map_err(|e| e.to_string())?;
+    if let Some(e) = write_error {
+        return Err(e.to_string());
+    }
+    trace.finish().map_err(|e| e.to_string())?;
+    let m = &run.metrics;
+    let st = &run.stats;
+    let total = st.wall_time_s.max(1e-12);
+    let summary = serde_json::json!({
+        "gait": gait.to_string(),
+        "speed_mps": args.speed,
+        "profile": args.profile.as_ref().map(|p| p.display().to_string()),
+        "params": params,
+        "progress_factor": args.progress_factor,
+        "duration_s": st.sim_time_s,
+        "metrics_window_s": [spec.metrics_start_s, st.sim_time_s],
+        "fell": st.fell,
+        "fell_at_s": st.fell_at_s,
+        "distance_m": m.distance_m,
+        "energy_j": m.energy_j,
+        "cot_j_per_m": m.cot_j_per_m,
+        "cot": m.cot,
+        "manipulability": m.manipulability,
+        "vel_rmse_mps": m.vel_rmse_mps,
+        "steps": Leg::ALL.iter().map(|l| (l.short_name().to_string(), serde_json::json!(run.steps[*l]))).collect::<serde_json::Map<_, _>>(),
+        "steps_total": run.steps.0.iter().sum::<usize>(),
+        "all_stance_fraction": m.all_stance_fraction,
+        "realtime_factor": st.realtime_factor(),
+        "mpc_solves": st.mpc_solves,
+        "mpc_failures": st.mpc_failures,
+        "mpc_solve_us_median": st.mpc_solve_median_us(),
+        "time_share": {
+            "physics": st.stages.physics_s / total,
+            "mpc": st.stages.mpc_s / total,
+            "leg_control": st.stages.leg_control_s / total,
+            "planner": st.stages.planner_s / total,
+            "logging": st.stages.observer_s / total,
+        },
+        "state_estimate": "ground truth (simulator state)",
+    });
+    write_json(&args.out.join("summary.json"), &summary).map_err(|e| e.to_string())?;
+    let panels = vec![
+        Panel {
+            title: "forward velocity".into(),
+            x_label: "time [s]".into(),
+            y_label: "v_x [m/s]".into(),
+            series: vec![
+                Series {
+                    label: "commanded".into(),
+                    x: t.clone(),
+                    y: cvx,
+                },
+                Series {
+                    label: "actual".into(),
+                    x: t.clone(),
+                    y: vx,
+                },
+            ],
+            markers: vec![],
+        },
+        Panel {
+            title: "lateral velocity".into(),
+            x_label: "time [s]".into(),
+            y_label: "v_y [m/s]".into(),
+            series: vec![
+                Series {
+                    label: "commanded".into(),
+                    x: t.clone(),
+                    y: cvy,
+                },
+                Series {
+                    label: "actual".into(),
+                    x: t.clone(),
+                    y: vy,
+                },
+            ],
+            markers: vec![],
+        },
+        Panel {
+            title: "foot heights (flat intervals: all four feet in stance)".into(),
+            x_label: "time [s]".into(),
+            y_label: "foot centre z [m]".into(),
+            series: Leg::ALL
+                .iter()
+                .map(|l| Series {
+                    label: l.short_name().into(),
+                    x: t.clone(),
+                    y: foot_z[l.index()].clone(),
+                })
+                .collect(),
+            markers: vec![],
+        },
+    ];
+    line_panels(
+        &args.out.join("velocity_and_feet.png"),
+        &format!("A1 under EEMP ({gait}): velocity tracking and foot heights"),
+        &panels,
+    )
+    .map_err(|e| e.to_string())?;
+    gait_diagram(
+        &args.out.join("gait.png"),
+        &format!("Gait diagram ({gait}, {} m/s)", args.speed),
+        &t,
+        &stance,
+        ["FR", "FL", "RR", "RL"],
+    )
+    .map_err(|e| e.to_string())?;
+    println!(
+        "{}",
+        serde_json::to_string_pretty(&summary).expect("serialises")
+    );
+    println!(
+        "wrote {}/summary.json, trace.csv, velocity_and_feet.png, gait.png",
+        args.out.display()
+    );
+    Ok(())
+}
