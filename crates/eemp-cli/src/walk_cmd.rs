@@ -36,6 +36,9 @@ pub struct WalkArgs {
     /// ellipse_ry_m); default: the paper's Table II.
     #[arg(long)]
     pub params: Option<PathBuf>,
+    /// EEMP-Analytical: a per-speed parameter table (tables/a1_<gait>.toml) used in place of --params.
+    #[arg(long, conflicts_with = "params")]
+    pub params_table: Option<PathBuf>,
     /// Factor on V·ΔT in eq. (6): 0.5 = the paper's eq. (6) (default), 1.0 = its Algorithm 1.
     #[arg(long, default_value_t = 0.5)]
     pub progress_factor: f64,
@@ -85,6 +88,11 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
         spec.profile = load_toml::<VelocityProfile>(p).map_err(|e| e.to_string())?;
     }
     spec.floor_friction = args.friction;
+    if let Some(p) = &args.params_table {
+        spec.params_table = Some(
+            eemp_core::planner::params_table::ParamsTable::load(p).map_err(|e| e.to_string())?,
+        );
+    }
     if let Some(at) = args.push_at {
         if !(at.is_finite() && at >= 0.0 && at < args.duration) {
             return Err(format!(
@@ -206,6 +214,7 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
         "speed_mps": args.speed,
         "profile": args.profile.as_ref().map(|p| p.display().to_string()),
         "params": params,
+        "params_table": args.params_table.as_ref().map(|p| p.display().to_string()),
         "progress_factor": args.progress_factor,
         "duration_s": st.sim_time_s,
         "metrics_window_s": [spec.metrics_start_s, st.sim_time_s],

@@ -10,6 +10,7 @@ use eemp_core::controller::{ControllerConfig, LocomotionController};
 use eemp_core::kinematics::LegKinematics;
 use eemp_core::leg::{Leg, LegMap};
 use eemp_core::metrics::{MetricsAccumulator, WalkMetrics};
+use eemp_core::planner::params_table::ParamsTable;
 use eemp_core::planner::{EemPlanner, PlannerConfig, PlannerParams, VelocityCommand};
 use eemp_core::robot::RobotConfig;
 use nalgebra::Vector3;
@@ -106,7 +107,10 @@ impl VelocityProfile {
 pub struct WalkSpec {
     pub controller: ControllerConfig,
     pub planner: PlannerConfig,
+    /// Constant parameters, used when there is no table.
     pub params: PlannerParams,
+    /// EEMP-Analytical: parameters looked up per commanded speed at every step.
+    pub params_table: Option<ParamsTable>,
     pub profile: VelocityProfile,
     pub duration_s: f64,
     /// Metrics ignore the first seconds (standing up to speed), s.
@@ -114,6 +118,10 @@ pub struct WalkSpec {
     pub pushes: Vec<Push>,
     /// Floor friction override (slippery ground); `None` keeps the robot file's value.
     pub floor_friction: Option<f64>,
+    /// 0: start exactly at rest. Otherwise the seed of a small random start (heading ±0.05 rad,
+    /// trunk velocity ±0.05 m/s per horizontal axis), so repeated runs of one grid point sample
+    /// different trajectories; the same seed always gives the same run.
+    pub seed: u64,
 }
 
 impl WalkSpec {
@@ -128,16 +136,41 @@ impl WalkSpec {
             controller: ControllerConfig::default(),
             planner,
             params,
+            params_table: None,
             profile: VelocityProfile::constant(0.5, command),
             duration_s,
             metrics_start_s: 2.0_f64.min(duration_s / 2.0),
             pushes: Vec::new(),
             floor_friction: None,
+            seed: 0,
+        }
+    }
+
+    /// The planner parameters in force at time `t`.
+    pub fn params_at(&self, t: f64) -> PlannerParams {
+        match &self.params_table {
+            Some(table) => {
+                let c = self.profile.command_at(t);
+                table.lookup(c.vx_mps.hypot(c.vy_mps))
+            }
+            None => self.params,
         }
     }
 
     pub fn validate(&self) -> Result<(), ConfigError> {
         self.controller.validate()?;
+        if let Some(t) = &self.params_table {
+            t.validate()?;
+            if t.gait != self.planner.gait {
+                return Err(ConfigError::Invalid {
+                    name: "params table".into(),
+                    message: format!(
+                        "is for gait {} but the run uses {}",
+                        t.gait, self.planner.gait
+                    ),
+                });
+            }
+        }
         self.planner.validate()?;
         self.params.validate()?;
         self.profile.validate()?;

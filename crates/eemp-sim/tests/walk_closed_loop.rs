@@ -133,9 +133,14 @@ fn steps_grow_with_speed_and_shrink_with_a_larger_ellipse() {
 }
 
 #[test]
-fn same_inputs_give_the_identical_run() {
-    let a = walk(Gait::Trot, 0.3, 3.0, PlannerParams::default());
-    let b = walk(Gait::Trot, 0.3, 3.0, PlannerParams::default());
+fn same_seed_gives_the_identical_run_and_another_seed_another_run() {
+    let run = |seed| {
+        let mut s = spec(Gait::Trot, 0.3, 3.0, PlannerParams::default());
+        s.seed = seed;
+        run_walk(&RobotConfig::a1(), &s, |_| {}).unwrap()
+    };
+    let (a, b, c) = (run(7), run(7), run(8));
     assert_eq!(a.metrics, b.metrics);
     assert_eq!(a.steps, b.steps);
+    assert_ne!(a.metrics, c.metrics);
 }

@@ -9,6 +9,7 @@
 pub mod ellipse;
 pub mod gait;
 pub mod params;
+pub mod params_table;
 pub mod swing_trajectory;
 pub mod touchdown;
 

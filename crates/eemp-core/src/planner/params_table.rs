@@ -1,0 +1,234 @@
+//! EEMP-Analytical's lookup table: planner parameters per commanded speed, chosen by the
+//! parameter study and looked up at run time (Algorithm 1, "Get planner parameters").
+
+use super::gait::Gait;
+use super::params::PlannerParams;
+use crate::config_error::{check_range, ConfigError};
+use serde::{Deserialize, Serialize};
+
+/// Between tabulated speeds: the nearest entry (the paper's discrete look-up) or linear
+/// interpolation of every parameter. Outside the table the end entries are used.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum Interpolation {
+    #[default]
+    Nearest,
+    Linear,
+}
+
+/// One row: the parameters for `speed_mps`, with the metrics that selected them (informative).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TableEntry {
+    pub speed_mps: f64,
+    pub swing_time_s: f64,
+    pub step_height_m: f64,
+    pub body_height_m: f64,
+    pub ellipse_rx_m: f64,
+    pub ellipse_ry_m: f64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cot: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub manipulability: Option<f64>,
+}
+
+impl TableEntry {
+    pub fn new(speed_mps: f64, p: &PlannerParams) -> Self {
+        TableEntry {
+            speed_mps,
+            swing_time_s: p.swing_time_s,
+            step_height_m: p.step_height_m,
+            body_height_m: p.body_height_m,
+            ellipse_rx_m: p.ellipse_rx_m,
+            ellipse_ry_m: p.ellipse_ry_m,
+            cot: None,
+            manipulability: None,
+        }
+    }
+
+    pub fn params(&self) -> PlannerParams {
+        PlannerParams {
+            swing_time_s: self.swing_time_s,
+            step_height_m: self.step_height_m,
+            body_height_m: self.body_height_m,
+            ellipse_rx_m: self.ellipse_rx_m,
+            ellipse_ry_m: self.ellipse_ry_m,
+        }
+    }
+}
+
+/// A per-speed parameter table for one gait (a TOML file: `gait`, `interpolation`, `[[entry]]`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ParamsTable {
+    pub gait: Gait,
+    #[serde(default)]
+    pub interpolation: Interpolation,
+    #[serde(rename = "entry")]
+    pub entries: Vec<TableEntry>,
+}
+
+impl ParamsTable {
+    /// Sorts the entries by speed and checks them: at least one, distinct finite speeds within
+    /// Table I, every parameter within Table I.
+    pub fn new(
+        gait: Gait,
+        interpolation: Interpolation,
+        mut entries: Vec<TableEntry>,
+    ) -> Result<Self, ConfigError> {
+        entries.sort_by(|a, b| a.speed_mps.total_cmp(&b.speed_mps));
+        let table = ParamsTable {
+            gait,
+            interpolation,
+            entries,
+        };
+        table.validate()?;
+        Ok(table)
+    }
+
+    pub fn load(path: &std::path::Path) -> Result<Self, ConfigError> {
+        let t: ParamsTable = crate::config_error::load_toml(path)?;
+        ParamsTable::new(t.gait, t.interpolation, t.entries)
+    }
+
+    pub fn to_toml(&self) -> String {
+        toml::to_string(self).expect("a table serialises")
+    }
+
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        if self.entries.is_empty() {
+            return Err(ConfigError::Invalid {
+                name: "params table".into(),
+                message: "has no [[entry]]".into(),
+            });
+        }
+        let [lo, hi] = super::params::table_i::SPEED_MPS;
+        for (i, e) in self.entries.iter().enumerate() {
+            check_range(&format!("entry[{i}].speed_mps"), e.speed_mps, lo, hi)?;
+            e.params().validate().map_err(|err| ConfigError::Invalid {
+                name: format!("entry[{i}]"),
+                message: err.to_string(),
+            })?;
+            if i > 0 && !(e.speed_mps > self.entries[i - 1].speed_mps) {
+                return Err(ConfigError::Invalid {
+                    name: format!("entry[{i}].speed_mps"),
+                    message: format!(
+                        "speeds must be strictly increasing; {} repeats",
+                        e.speed_mps
+                    ),
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Parameters for a commanded speed (m/s, magnitude of the horizontal command).
+    pub fn lookup(&self, speed_mps: f64) -> PlannerParams {
+        let e = &self.entries;
+        let s = if speed_mps.is_finite() {
+            speed_mps
+        } else {
+            0.0
+        };
+        if s <= e[0].speed_mps {
+            return e[0].params();
+        }
+        if s >= e[e.len() - 1].speed_mps {
+            return e[e.len() - 1].params();
+        }
+        let hi = e
+            .iter()
+            .position(|x| x.speed_mps >= s)
+            .expect("inside the table");
+        let (a, b) = (&e[hi - 1], &e[hi]);
+        match self.interpolation {
+            Interpolation::Nearest => {
+                if s - a.speed_mps <= b.speed_mps - s {
+                    a.params()
+                } else {
+                    b.params()
+                }
+            }
+            Interpolation::Linear => {
+                let w = (s - a.speed_mps) / (b.speed_mps - a.speed_mps);
+                let (pa, pb) = (a.params(), b.params());
+                let mix = |x: f64, y: f64| x + w * (y - x);
+                PlannerParams {
+                    swing_time_s: mix(pa.swing_time_s, pb.swing_time_s),
+                    step_height_m: mix(pa.step_height_m, pb.step_height_m),
+                    body_height_m: mix(pa.body_height_m, pb.body_height_m),
+                    ellipse_rx_m: mix(pa.ellipse_rx_m, pb.ellipse_rx_m),
+                    ellipse_ry_m: mix(pa.ellipse_ry_m, pb.ellipse_ry_m),
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn table(interpolation: Interpolation) -> ParamsTable {
+        let a = PlannerParams {
+            swing_time_s: 0.25,
+            ellipse_rx_m: 0.10,
+            ..Default::default()
+        };
+        let b = PlannerParams {
+            swing_time_s: 0.15,
+            ellipse_rx_m: 0.04,
+            ..Default::default()
+        };
+        ParamsTable::new(
+            Gait::Trot,
+            interpolation,
+            vec![TableEntry::new(0.5, &b), TableEntry::new(0.1, &a)],
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn nearest_and_linear_lookup_by_hand() {
+        let t = table(Interpolation::Nearest);
+        assert_eq!(t.entries[0].speed_mps, 0.1, "sorted on construction");
+        assert_eq!(t.lookup(0.05).swing_time_s, 0.25);
+        assert_eq!(t.lookup(0.29).swing_time_s, 0.25);
+        assert_eq!(t.lookup(0.31).swing_time_s, 0.15);
+        assert_eq!(t.lookup(2.0).swing_time_s, 0.15);
+        let t = table(Interpolation::Linear);
+        // 0.2 m/s is a quarter of the way from 0.1 to 0.5: 0.25 − 0.25·0.10 = 0.225 s.
+        assert!((t.lookup(0.2).swing_time_s - 0.225).abs() < 1e-12);
+        assert!((t.lookup(0.2).ellipse_rx_m - 0.085).abs() < 1e-12);
+        assert_eq!(t.lookup(f64::NAN).swing_time_s, 0.25);
+    }
+
+    #[test]
+    fn round_trips_through_toml_and_rejects_bad_tables() {
+        let t = table(Interpolation::Linear);
+        let back: ParamsTable = toml::from_str(&t.to_toml()).unwrap();
+        assert_eq!(back, t);
+        let dup = ParamsTable::new(
+            Gait::Walk,
+            Interpolation::Nearest,
+            vec![
+                TableEntry::new(0.1, &PlannerParams::default()),
+                TableEntry::new(0.1, &PlannerParams::default()),
+            ],
+        );
+        assert!(dup.unwrap_err().to_string().contains("strictly increasing"));
+        let bad = ParamsTable::new(
+            Gait::Walk,
+            Interpolation::Nearest,
+            vec![TableEntry::new(
+                0.1,
+                &PlannerParams {
+                    swing_time_s: 0.5,
+                    ..Default::default()
+                },
+            )],
+        );
+        assert!(bad.unwrap_err().to_string().contains("swing_time_s"));
+        assert!(ParamsTable::new(Gait::Walk, Interpolation::Nearest, vec![]).is_err());
+    }
+}
