@@ -11,12 +11,14 @@
 
 use eemp_core::body_reference::BodyReference;
 use eemp_core::body_state::BodyState;
+use eemp_core::controller::ControllerConfig;
 use eemp_core::convex_mpc::{ConvexMpc, MpcConfig, MpcInput, QpSolverKind};
 use eemp_core::kinematics::LegKinematics;
 use eemp_core::leg::{Leg, LegMap};
 use eemp_core::robot::RobotConfig;
+use eemp_core::stand_profile::BodyMotionProfile;
 use eemp_sim::mjcf::SceneExtras;
-use eemp_sim::stand::reset_crouched;
+use eemp_sim::stand::run_stand;
 use eemp_sim::Simulation;
 use nalgebra::{UnitQuaternion, Vector3};
 use rand::{Rng, SeedableRng};
@@ -32,10 +34,6 @@ const FOOT_Z_M: f64 = 0.02;
 const TROT_SPEED_M_S: f64 = 0.5;
 /// Untimed solves before each case's timed ones (caches, allocator, branch predictors).
 const WARMUP_SOLVES: usize = 20;
-/// MuJoCo steps per timed batch.
-const MUJOCO_BATCH: usize = 100;
-/// MuJoCo steps between resets to the crouched pose (keeps the states contact-rich).
-const MUJOCO_RESET_EVERY: usize = 2000;
 
 /// What to measure.
 #[derive(Clone, Debug, PartialEq)]
@@ -288,31 +286,39 @@ fn median_and_p99(samples: &mut [f64]) -> (f64, f64) {
 /// Median time of one bare MuJoCo step of the A1 with zero torques, µs: measured in batches of
 /// 100 steps (median over batches of batch time / 100), reset to the crouched pose every 2000
 /// steps so the robot keeps falling onto and settling on the floor (contact-rich states).
+/// Median time of one bare `mj_step` of the A1 in the states it is in while standing under
+/// control (four foot contacts), µs. States and torques are recorded from a standing run, then
+/// each is restored and stepped once; a collapsing robot would give contact-rich, slower steps
+/// and flatter every ratio against it.
 fn time_mujoco_step(steps: usize) -> f64 {
     let robot = RobotConfig::a1();
+    let mut profile = BodyMotionProfile::default();
+    profile.segments.truncate(3);
+    let mut recorded = Vec::new();
+    let mut i = 0usize;
+    run_stand(
+        &robot,
+        ControllerConfig::default(),
+        profile,
+        4.0,
+        &[],
+        |r| {
+            if r.state.time_s > 2.2 && i.is_multiple_of(10) {
+                recorded.push((*r.state, r.output.torques));
+            }
+            i += 1;
+        },
+    )
+    .expect("the standing scenario runs");
     let mut sim =
         Simulation::new(&robot, &SceneExtras::default()).expect("the A1 model builds in MuJoCo");
-    let zero = LegMap::splat(Vector3::zeros());
-    let batch = MUJOCO_BATCH.min(steps.max(1));
-    let batches = (steps / batch).max(1);
-    // Warm-up: one untimed batch.
-    reset_crouched(&mut sim, &robot);
-    for _ in 0..batch {
-        sim.step_bare(&zero);
-    }
-    let mut per_step_us = Vec::with_capacity(batches);
-    let mut since_reset = MUJOCO_RESET_EVERY;
-    for _ in 0..batches {
-        if since_reset >= MUJOCO_RESET_EVERY {
-            reset_crouched(&mut sim, &robot);
-            since_reset = 0;
-        }
+    let mut per_step_us = Vec::with_capacity(steps);
+    for k in 0..steps.max(1) {
+        let (state, torques) = &recorded[k % recorded.len()];
+        sim.set_state(state);
         let start = Instant::now();
-        for _ in 0..batch {
-            sim.step_bare(std::hint::black_box(&zero));
-        }
-        per_step_us.push(start.elapsed().as_secs_f64() * 1e6 / batch as f64);
-        since_reset += batch;
+        sim.step_bare(std::hint::black_box(torques));
+        per_step_us.push(start.elapsed().as_secs_f64() * 1e6);
     }
     median_and_p99(&mut per_step_us).0
 }

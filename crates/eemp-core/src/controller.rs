@@ -39,7 +39,9 @@ pub struct Plan {
 pub struct ControllerConfig {
     pub mpc: MpcConfig,
     pub swing: SwingGains,
-    /// Time between MPC solves, s; a change of the stance set triggers an extra solve.
+    /// Time between MPC solves, s; a change of the stance set triggers an extra solve. 10 ms:
+    /// at 20 ms the free gait fell at 0.05–0.5 m/s and the trot tracked 0.19 m/s RMSE at 0.3 m/s
+    /// (0.14 at 10 ms); the price is about twice the MPC time.
     pub mpc_period_s: f64,
 }
 
@@ -48,7 +50,7 @@ impl Default for ControllerConfig {
         ControllerConfig {
             mpc: MpcConfig::default(),
             swing: SwingGains::default(),
-            mpc_period_s: 0.02,
+            mpc_period_s: 0.01,
         }
     }
 }

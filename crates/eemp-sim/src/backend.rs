@@ -146,6 +146,30 @@ impl Simulation {
         self.data.forward();
     }
 
+    /// Sets position and velocity from a [`RobotState`] (e.g. one recorded earlier) and
+    /// recomputes the derived quantities.
+    pub fn set_state(&mut self, state: &RobotState) {
+        let b = &state.body;
+        let q = b.r_world_body.coords;
+        let omega_body = b.r_world_body.inverse() * b.omega_world;
+        {
+            let qpos = self.data.qpos_mut();
+            qpos[0..3].copy_from_slice(b.p_world.as_slice());
+            qpos[3..7].copy_from_slice(&[q.w, q.x, q.y, q.z]);
+        }
+        {
+            let qvel = self.data.qvel_mut();
+            qvel[0..3].copy_from_slice(b.v_world.as_slice());
+            qvel[3..6].copy_from_slice(omega_body.as_slice());
+        }
+        for leg in Leg::ALL {
+            let (a, d) = (self.handles.qpos_adr[leg], self.handles.dof_adr[leg]);
+            self.data.qpos_mut()[a..a + 3].copy_from_slice(state.joints[leg].q.as_slice());
+            self.data.qvel_mut()[d..d + 3].copy_from_slice(state.joints[leg].qd.as_slice());
+        }
+        self.data.forward();
+    }
+
     /// Computes kinematics, mass matrix and bias forces at the current state (mj_step1).
     pub fn prepare(&mut self) {
         self.data.step1();

@@ -228,11 +228,21 @@ pub fn run_walk(
     let mut sim = Simulation::new(&robot, &SceneExtras::default())?;
     let mut controller = LocomotionController::new(&robot, spec.controller.clone())?;
     let kin = LegKinematics::new(&robot);
-    let q0 = standing_joints(&kin, spec.params.body_height_m, robot.leg.foot_radius_m)?;
-    sim.reset(
-        Vector3::new(0.0, 0.0, spec.params.body_height_m + 1e-3),
-        &q0,
-    );
+    let first = spec.profile.segments.first().map(|s| s.start_s).unwrap_or(0.0);
+    let start_height = spec.params_at(first).body_height_m;
+    let q0 = standing_joints(&kin, start_height, robot.leg.foot_radius_m)?;
+    sim.reset(Vector3::new(0.0, 0.0, start_height + 1e-3), &q0);
+    if spec.seed != 0 {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(spec.seed);
+        let yaw: f64 = rng.random_range(-0.05..0.05);
+        let (vx, vy): (f64, f64) = (rng.random_range(-0.05..0.05), rng.random_range(-0.05..0.05));
+        let data = sim.data_mut();
+        data.qpos_mut()[3..7].copy_from_slice(&[(yaw / 2.0).cos(), 0.0, 0.0, (yaw / 2.0).sin()]);
+        data.qvel_mut()[0] = vx;
+        data.qvel_mut()[1] = vy;
+        data.forward();
+    }
     let mut planner = EemPlanner::new(
         spec.planner.clone(),
         kin.clone(),
@@ -255,7 +265,7 @@ pub fn run_walk(
                 state,
                 feet,
                 &spec.profile.command_at(state.time_s),
-                &spec.params,
+                &spec.params_at(state.time_s),
             )
         },
         |record| {

@@ -158,3 +158,27 @@ fn composite_body_matches_mujoco_mass_and_com() {
         body.mass_kg
     );
 }
+
+#[test]
+fn ground_truth_velocities_match_mujoco_object_velocity() {
+    use mujoco_rs::prelude::MjtObjBase;
+    let robot = RobotConfig::a1();
+    let mut sim = Simulation::new(&robot, &SceneExtras::default()).unwrap();
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
+    for _ in 0..20 {
+        let (p, r, q) = random_pose(&mut rng);
+        set_pose(&mut sim, p, r, &q);
+        for i in 0..sim.nv() {
+            sim.data_mut().qvel_mut()[i] = rng.random_range(-1.0..1.0);
+        }
+        sim.data_mut().forward();
+        let state = sim.ground_truth_state();
+        let trunk = sim.data().model().name_to_id(MjtObjBase::mjOBJ_BODY, "trunk").unwrap();
+        // [angular; linear] at the trunk frame origin (XBODY; BODY would be the COM), world axes.
+        let v = sim.data().object_velocity(MjtObjBase::mjOBJ_XBODY, trunk, false);
+        let omega = Vector3::new(v[0], v[1], v[2]);
+        let lin = Vector3::new(v[3], v[4], v[5]);
+        assert!((state.body.omega_world - omega).norm() < 1e-9, "ω {:?} vs MuJoCo {:?}", state.body.omega_world, omega);
+        assert!((state.body.v_world - lin).norm() < 1e-9, "v {:?} vs MuJoCo {:?}", state.body.v_world, lin);
+    }
+}

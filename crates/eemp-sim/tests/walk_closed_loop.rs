@@ -31,7 +31,7 @@ fn walk(gait: Gait, speed: f64, duration: f64, params: PlannerParams) -> WalkRun
 #[test]
 fn each_gait_walks_without_falling() {
     // Free is exercised where it is stable today (see the README's known limitations).
-    for (gait, speed) in [(Gait::Trot, 0.5), (Gait::Walk, 0.2), (Gait::Free, 0.8)] {
+    for (gait, speed) in [(Gait::Trot, 0.5), (Gait::Walk, 0.2), (Gait::Free, 0.3)] {
         let run = walk(gait, speed, 6.0, PlannerParams::default());
         let m = &run.metrics;
         println!(
@@ -143,4 +143,17 @@ fn same_seed_gives_the_identical_run_and_another_seed_another_run() {
     assert_eq!(a.metrics, b.metrics);
     assert_eq!(a.steps, b.steps);
     assert_ne!(a.metrics, c.metrics);
+}
+
+#[test]
+fn a_params_table_drives_the_planner() {
+    use eemp_core::planner::params_table::{Interpolation, ParamsTable, TableEntry};
+    let wide = PlannerParams { ellipse_rx_m: 0.10, ellipse_ry_m: 0.06, ..Default::default() };
+    let constant = walk(Gait::Trot, 0.3, 3.0, wide);
+    let mut with_table = spec(Gait::Trot, 0.3, 3.0, PlannerParams::default());
+    with_table.params_table = Some(ParamsTable::new(Gait::Trot, Interpolation::Nearest, vec![TableEntry::new(0.3, &wide)]).unwrap());
+    let tabled = run_walk(&RobotConfig::a1(), &with_table, |_| {}).unwrap();
+    assert_eq!(tabled.metrics, constant.metrics, "the table's parameters must be the ones in force");
+    let default = walk(Gait::Trot, 0.3, 3.0, PlannerParams::default());
+    assert_ne!(tabled.metrics, default.metrics);
 }
