@@ -228,7 +228,12 @@ pub fn run_walk(
     let mut sim = Simulation::new(&robot, &SceneExtras::default())?;
     let mut controller = LocomotionController::new(&robot, spec.controller.clone())?;
     let kin = LegKinematics::new(&robot);
-    let first = spec.profile.segments.first().map(|s| s.start_s).unwrap_or(0.0);
+    let first = spec
+        .profile
+        .segments
+        .first()
+        .map(|s| s.start_s)
+        .unwrap_or(0.0);
     let start_height = spec.params_at(first).body_height_m;
     let q0 = standing_joints(&kin, start_height, robot.leg.foot_radius_m)?;
     sim.reset(Vector3::new(0.0, 0.0, start_height + 1e-3), &q0);

@@ -173,12 +173,28 @@ fn ground_truth_velocities_match_mujoco_object_velocity() {
         }
         sim.data_mut().forward();
         let state = sim.ground_truth_state();
-        let trunk = sim.data().model().name_to_id(MjtObjBase::mjOBJ_BODY, "trunk").unwrap();
+        let trunk = sim
+            .data()
+            .model()
+            .name_to_id(MjtObjBase::mjOBJ_BODY, "trunk")
+            .unwrap();
         // [angular; linear] at the trunk frame origin (XBODY; BODY would be the COM), world axes.
-        let v = sim.data().object_velocity(MjtObjBase::mjOBJ_XBODY, trunk, false);
+        let v = sim
+            .data()
+            .object_velocity(MjtObjBase::mjOBJ_XBODY, trunk, false);
         let omega = Vector3::new(v[0], v[1], v[2]);
         let lin = Vector3::new(v[3], v[4], v[5]);
-        assert!((state.body.omega_world - omega).norm() < 1e-9, "ω {:?} vs MuJoCo {:?}", state.body.omega_world, omega);
-        assert!((state.body.v_world - lin).norm() < 1e-9, "v {:?} vs MuJoCo {:?}", state.body.v_world, lin);
+        assert!(
+            (state.body.omega_world - omega).norm() < 1e-9,
+            "ω {:?} vs MuJoCo {:?}",
+            state.body.omega_world,
+            omega
+        );
+        assert!(
+            (state.body.v_world - lin).norm() < 1e-9,
+            "v {:?} vs MuJoCo {:?}",
+            state.body.v_world,
+            lin
+        );
     }
 }

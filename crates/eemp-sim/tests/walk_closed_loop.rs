@@ -148,12 +148,26 @@ fn same_seed_gives_the_identical_run_and_another_seed_another_run() {
 #[test]
 fn a_params_table_drives_the_planner() {
     use eemp_core::planner::params_table::{Interpolation, ParamsTable, TableEntry};
-    let wide = PlannerParams { ellipse_rx_m: 0.10, ellipse_ry_m: 0.06, ..Default::default() };
+    let wide = PlannerParams {
+        ellipse_rx_m: 0.10,
+        ellipse_ry_m: 0.06,
+        ..Default::default()
+    };
     let constant = walk(Gait::Trot, 0.3, 3.0, wide);
     let mut with_table = spec(Gait::Trot, 0.3, 3.0, PlannerParams::default());
-    with_table.params_table = Some(ParamsTable::new(Gait::Trot, Interpolation::Nearest, vec![TableEntry::new(0.3, &wide)]).unwrap());
+    with_table.params_table = Some(
+        ParamsTable::new(
+            Gait::Trot,
+            Interpolation::Nearest,
+            vec![TableEntry::new(0.3, &wide)],
+        )
+        .unwrap(),
+    );
     let tabled = run_walk(&RobotConfig::a1(), &with_table, |_| {}).unwrap();
-    assert_eq!(tabled.metrics, constant.metrics, "the table's parameters must be the ones in force");
+    assert_eq!(
+        tabled.metrics, constant.metrics,
+        "the table's parameters must be the ones in force"
+    );
     let default = walk(Gait::Trot, 0.3, 3.0, PlannerParams::default());
     assert_ne!(tabled.metrics, default.metrics);
 }
