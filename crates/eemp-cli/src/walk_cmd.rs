@@ -51,6 +51,9 @@ pub struct WalkArgs {
     /// Lateral velocity change of the push, m/s.
     #[arg(long, default_value_t = 0.3)]
     pub push_dv: f64,
+    /// Time between MPC solves, s (a stance change also triggers a solve).
+    #[arg(long, default_value_t = 0.01)]
+    pub mpc_period: f64,
     /// Rows per second in trace.csv (the simulation runs at 1000 Hz; writing every step costs
     /// about a quarter of the run time).
     #[arg(long, default_value_t = 100.0)]
@@ -91,6 +94,7 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
     if let Some(p) = &args.profile {
         spec.profile = load_toml::<VelocityProfile>(p).map_err(|e| e.to_string())?;
     }
+    spec.controller.mpc_period_s = args.mpc_period;
     spec.floor_friction = args.friction;
     if let Some(p) = &args.params_table {
         spec.params_table = Some(
