@@ -109,11 +109,19 @@ impl ParamsTable {
                 name: format!("entry[{i}]"),
                 message: err.to_string(),
             })?;
-            if i > 0 && !(e.speed_mps > self.entries[i - 1].speed_mps) {
+            let previous = if i > 0 {
+                Some(self.entries[i - 1].speed_mps)
+            } else {
+                None
+            };
+            // partial_cmp: a NaN speed never compares Greater, so it is rejected too.
+            if previous
+                .is_some_and(|p| e.speed_mps.partial_cmp(&p) != Some(std::cmp::Ordering::Greater))
+            {
                 return Err(ConfigError::Invalid {
                     name: format!("entry[{i}].speed_mps"),
                     message: format!(
-                        "speeds must be strictly increasing; {} repeats",
+                        "speeds must be strictly increasing; {} does not exceed the previous entry",
                         e.speed_mps
                     ),
                 });
