@@ -1,15 +1,17 @@
 #!/usr/bin/env bash
 # The walking table of issue 3: 20 s runs per gait and speed with Table II parameters.
-# Usage: scripts/walk-table.sh [eemp binary] [output folder]   (prints a Markdown table)
+# Usage: scripts/walk-table.sh [eemp binary] [output folder] [extra `eemp walk` options...]
+# (prints a Markdown table)
 set -euo pipefail
 eemp="${1:-target/release/eemp}"
 out="${2:-out/walk-table}"
+shift $(( $# < 2 ? $# : 2 ))
 echo "| gait | speed m/s | fell | vel RMSE m/s | CoT | CoT J/m | manipulability | steps | all-stance | RTF |"
 echo "|---|---|---|---|---|---|---|---|---|---|"
 for gait in trot free walk; do
-  for speed in 0.05 0.1 0.3 0.5 0.8 1.0; do
+  for speed in 0.05 0.1 0.3 0.4 0.5 0.8 1.0; do
     dir="$out/$gait-$speed"
-    "$eemp" walk --gait "$gait" --speed "$speed" --duration 20 --trace-hz 10 --out "$dir" >/dev/null
+    "$eemp" walk --gait "$gait" --speed "$speed" --duration 20 --trace-hz 10 --out "$dir" "$@" >/dev/null
     python3 - "$dir/summary.json" "$gait" "$speed" <<'PY'
 import json, sys
 s = json.load(open(sys.argv[1]))

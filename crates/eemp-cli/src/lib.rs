@@ -3,4 +3,6 @@ pub mod bench;
 pub mod output;
 pub mod plots;
 pub mod stand_cmd;
+pub mod sweep_cmd;
+pub mod sweep_report;
 pub mod walk_cmd;

@@ -1,7 +1,7 @@
 //! `eemp`: the energy-efficient motion planner on a simulated Unitree A1.
 
 use clap::{Parser, Subcommand};
-use eemp_cli::{stand_cmd, walk_cmd};
+use eemp_cli::{stand_cmd, sweep_cmd, walk_cmd};
 
 #[derive(Parser)]
 #[command(
@@ -20,6 +20,9 @@ enum Command {
     Stand(stand_cmd::StandArgs),
     /// Walk under EEMP at a commanded velocity; metrics and figures in --out.
     Walk(walk_cmd::WalkArgs),
+    /// Parameter study (EEMP-Analytical): run a grid of walks (resumable, shardable), merge
+    /// shards, report the best parameters per speed.
+    Sweep(sweep_cmd::SweepArgs),
     /// Benchmarks.
     Bench {
         #[command(subcommand)]
@@ -47,6 +50,7 @@ fn main() {
     let result = match cli.command {
         Command::Stand(args) => stand_cmd::run(&args),
         Command::Walk(args) => walk_cmd::run(&args),
+        Command::Sweep(args) => sweep_cmd::run(&args),
         Command::Bench {
             what: BenchCommand::Mpc { solves },
         } => {

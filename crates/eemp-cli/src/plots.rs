@@ -16,7 +16,7 @@ pub const WIDTH: u32 = 1200;
 const PANEL_H: u32 = 300;
 const TITLE_H: u32 = 50;
 const LEGEND_W: u32 = 210;
-const COLORBAR_W: u32 = 170;
+const COLORBAR_W: u32 = 180;
 const FONT: &str = "sans-serif";
 const NAN_GREY: RGBColor = RGBColor(176, 176, 176);
 const STANCE: RGBColor = RGBColor(31, 119, 180);
@@ -100,6 +100,7 @@ pub fn gait_diagram(
             .y_labels(8)
             .y_label_formatter(&|v| lane_name(*v, &leg_names))
             .x_desc("time [s]")
+            .x_label_formatter(&tick_format((t0, t1)))
             .label_style((FONT, 14))
             .axis_desc_style((FONT, 16))
             .draw()?;
@@ -153,10 +154,8 @@ pub fn heatmap_grid(
     let cols = cols.clamp(1, cells.len().max(1));
     let rows = cells.len().div_ceil(cols).max(1);
     let cell_h = ((WIDTH - COLORBAR_W) / cols as u32 * 4 / 5).clamp(260, 500);
-    let zr = padded_range(
-        cells.iter().flat_map(|c| c.z.iter().flatten().copied()),
-        0.0,
-    );
+    let all_z = cells.iter().flat_map(|c| c.z.iter().flatten().copied());
+    let zr = padded_range(all_z, 0.0);
     render(path, (WIDTH, TITLE_H + cell_h * rows as u32), |root| {
         let body = root.titled(title, title_style())?;
         let (grid, bar) = body.split_horizontally(WIDTH - COLORBAR_W);
@@ -200,7 +199,8 @@ fn render(
 }
 
 fn title_style() -> TextStyle<'static> {
-    (FONT, 26).into_font().style(FontStyle::Bold).into()
+    // `FontDesc::style` keeps the old glyph data, so ask for the bold face directly.
+    FontDesc::new(FontFamily::Name(FONT), 26.0, FontStyle::Bold).into()
 }
 
 fn no_data(area: &Area) -> DrawResult {
@@ -212,17 +212,13 @@ fn no_data(area: &Area) -> DrawResult {
 
 fn draw_panel(area: &Area, panel: &Panel) -> DrawResult {
     let (chart_area, legend) = area.split_horizontally(WIDTH - LEGEND_W);
-    let xs = panel
-        .series
-        .iter()
-        .flat_map(|s| finite_points(s).map(|p| p.0));
-    let xr = axis_range(xs.chain(panel.markers.iter().map(|m| m.0)));
-    let yr = axis_range(
-        panel
-            .series
-            .iter()
-            .flat_map(|s| finite_points(s).map(|p| p.1)),
+    let points = || panel.series.iter().flat_map(finite_points);
+    let xr = axis_range(
+        points()
+            .map(|p| p.0)
+            .chain(panel.markers.iter().map(|m| m.0)),
     );
+    let yr = axis_range(points().map(|p| p.1));
     let mut chart = ChartBuilder::on(&chart_area)
         .caption(&panel.title, (FONT, 18))
         .margin(8)
@@ -233,16 +229,15 @@ fn draw_panel(area: &Area, panel: &Panel) -> DrawResult {
         .configure_mesh()
         .x_desc(panel.x_label.as_str())
         .y_desc(panel.y_label.as_str())
+        .x_label_formatter(&tick_format(xr))
+        .y_label_formatter(&tick_format(yr))
         .label_style((FONT, 13))
         .axis_desc_style((FONT, 15))
         .light_line_style(BLACK.mix(0.05))
         .draw()?;
     let mut entries = Vec::new();
-    let drawn = panel
-        .series
-        .iter()
-        .filter(|s| finite_points(s).next().is_some());
-    for (i, series) in drawn.enumerate() {
+    let has_data = |s: &&Series| finite_points(s).next().is_some();
+    for (i, series) in panel.series.iter().filter(has_data).enumerate() {
         let color = palette(i);
         for seg in segments(series) {
             if let [p] = seg[..] {
@@ -256,11 +251,9 @@ fn draw_panel(area: &Area, panel: &Panel) -> DrawResult {
     for (x, label) in panel.markers.iter().filter(|m| m.0.is_finite()) {
         let line = [(*x, yr.0), (*x, yr.1)];
         chart.draw_series(DashedLineSeries::new(line, 8, 6, RED.stroke_width(2)))?;
-        if !entries
-            .iter()
-            .any(|(l, s)| l == label && matches!(s, Swatch::Dashed(_)))
-        {
-            entries.push((label.clone(), Swatch::Dashed(RED)));
+        let entry = (label.clone(), Swatch::Dashed(RED));
+        if !entries.contains(&entry) {
+            entries.push(entry);
         }
     }
     draw_legend(&legend, &entries, 36)
@@ -296,6 +289,8 @@ fn draw_map(
         .disable_mesh()
         .x_desc(x_label)
         .y_desc(y_label)
+        .x_label_formatter(&tick_format(xr))
+        .y_label_formatter(&tick_format(yr))
         .label_style((FONT, text - 2))
         .axis_desc_style((FONT, text))
         .draw()?;
@@ -324,13 +319,15 @@ fn draw_colorbar(area: &Area, z_label: &str, zr: (f64, f64), grey: bool) -> Draw
         .margin_top(30)
         .margin_bottom(10)
         .margin_left(10)
-        .right_y_label_area_size(110)
+        .margin_right(30)
+        .right_y_label_area_size(80)
         .build_cartesian_2d(0.0f64..1.0f64, zr.0..zr.1)?;
     chart
         .configure_mesh()
         .disable_mesh()
         .disable_x_axis()
         .y_desc(z_label)
+        .y_label_formatter(&tick_format(zr))
         .label_style((FONT, 13))
         .axis_desc_style((FONT, 15))
         .draw()?;
@@ -342,20 +339,17 @@ fn draw_colorbar(area: &Area, z_label: &str, zr: (f64, f64), grey: bool) -> Draw
         Rectangle::new([(0.0, z0), (1.0, z0 + dz)], color.filled())
     }))?;
     if grey {
-        draw_legend(
-            &nan_area,
-            &[("fell / no data".into(), Swatch::Cell(NAN_GREY))],
-            10,
-        )?;
+        let entry = ("fell / no data".into(), Swatch::Bar(NAN_GREY));
+        draw_legend(&nan_area, &[entry], 10)?;
     }
     Ok(())
 }
 
+#[derive(PartialEq)]
 enum Swatch {
     Line(RGBColor),
     Dashed(RGBColor),
     Bar(RGBColor),
-    Cell(RGBColor),
 }
 
 /// Legends live beside the chart so they never hide data.
@@ -375,7 +369,7 @@ fn draw_legend(area: &Area, entries: &[(String, Swatch)], top: i32) -> DrawResul
                     area.draw(&PathElement::new([(x, y), (x + 7, y)], c.stroke_width(2)))?;
                 }
             }
-            Swatch::Bar(c) | Swatch::Cell(c) => {
+            Swatch::Bar(c) => {
                 let half = (row / 3).max(3);
                 let corners = [(8, y - half), (38, y + half)];
                 area.draw(&Rectangle::new(corners, c.filled()))?;
@@ -390,6 +384,23 @@ fn draw_legend(area: &Area, entries: &[(String, Swatch)], top: i32) -> DrawResul
         area.draw_text(&text, &style, (46, y))?;
     }
     Ok(())
+}
+
+/// Tick labels with the decimals the tick spacing needs; plotters' own shows "-0.0".
+fn tick_format(range: (f64, f64)) -> impl Fn(&f64) -> String {
+    let step = (range.1 - range.0) / 10.0;
+    let decimals = (-step.log10().floor()).clamp(0.0, 12.0) as usize;
+    move |v| {
+        let text = if v.abs() >= 1e6 || decimals > 5 {
+            format!("{v:.2e}")
+        } else {
+            format!("{v:.decimals$}")
+        };
+        match text.strip_prefix('-') {
+            Some(rest) if text.parse::<f64>() == Ok(0.0) => rest.to_string(),
+            _ => text,
+        }
+    }
 }
 
 fn lane_name(v: f64, names: &[&str; 4]) -> String {
@@ -460,11 +471,8 @@ fn padded_range(values: impl Iterator<Item = f64>, margin: f64) -> (f64, f64) {
         return (0.0, 1.0);
     }
     let span = hi - lo;
-    let pad = if span > 0.0 {
-        margin * span
-    } else {
-        (0.1 * lo.abs()).max(0.5)
-    };
+    let flat_pad = (0.1 * lo.abs()).max(0.5);
+    let pad = if span > 0.0 { margin * span } else { flat_pad };
     if !span.is_finite() || !(lo - pad).is_finite() || !(hi + pad).is_finite() {
         return (-f64::MAX / 4.0, f64::MAX / 4.0);
     }
@@ -473,12 +481,8 @@ fn padded_range(values: impl Iterator<Item = f64>, margin: f64) -> (f64, f64) {
 
 /// (index, lower edge, upper edge) of each finite grid value: edges half-way to the neighbours.
 fn cell_edges(v: &[f64]) -> Vec<(usize, f64, f64)> {
-    let pts: Vec<(usize, f64)> = v
-        .iter()
-        .copied()
-        .enumerate()
-        .filter(|p| p.1.is_finite())
-        .collect();
+    let finite = v.iter().copied().enumerate().filter(|p| p.1.is_finite());
+    let pts: Vec<(usize, f64)> = finite.collect();
     (0..pts.len())
         .map(|k| {
             let c = pts[k].1;
@@ -494,41 +498,30 @@ fn cell_edges(v: &[f64]) -> Vec<(usize, f64, f64)> {
 
 fn palette(i: usize) -> RGBColor {
     // Tableau colours without red, which is reserved for the marker lines.
-    const P: [RGBColor; 9] = [
-        RGBColor(31, 119, 180),
-        RGBColor(255, 127, 14),
-        RGBColor(44, 160, 44),
-        RGBColor(148, 103, 189),
-        RGBColor(140, 86, 75),
-        RGBColor(227, 119, 194),
-        RGBColor(127, 127, 127),
-        RGBColor(188, 189, 34),
-        RGBColor(23, 190, 207),
+    const P: [u32; 9] = [
+        0x1f77b4, 0xff7f0e, 0x2ca02c, 0x9467bd, 0x8c564b, 0xe377c2, 0x7f7f7f, 0xbcbd22, 0x17becf,
     ];
-    P.get(i).copied().unwrap_or_else(|| {
-        let (r, g, b) = HSLColor((i as f64 * 0.618_034).fract(), 0.7, 0.4).rgb();
-        RGBColor(r, g, b)
-    })
+    match P.get(i) {
+        Some(&c) => hex(c),
+        None => {
+            let (r, g, b) = HSLColor((i as f64 * 0.618_034).fract(), 0.7, 0.4).rgb();
+            RGBColor(r, g, b)
+        }
+    }
+}
+
+fn hex(c: u32) -> RGBColor {
+    RGBColor((c >> 16) as u8, (c >> 8) as u8, c as u8)
 }
 
 /// Viridis, sampled at five stops and interpolated linearly.
 fn colormap(t: f64) -> RGBColor {
-    const STOPS: [(f64, f64, f64); 5] = [
-        (68.0, 1.0, 84.0),
-        (59.0, 82.0, 139.0),
-        (33.0, 145.0, 140.0),
-        (94.0, 201.0, 98.0),
-        (253.0, 231.0, 37.0),
-    ];
-    let s = if t.is_finite() {
-        t.clamp(0.0, 1.0) * 4.0
-    } else {
-        0.0
-    };
+    const STOPS: [u32; 5] = [0x440154, 0x3b528b, 0x21918c, 0x5ec962, 0xfde725];
+    // Callers grey out NaN first; were one to slip through, the `as` casts saturate.
+    let s = t.clamp(0.0, 1.0) * 4.0;
     let i = (s.floor() as usize).min(3);
-    let f = s - i as f64;
-    let (a, b) = (STOPS[i], STOPS[i + 1]);
-    let mix = |p: f64, q: f64| (p + (q - p) * f).round() as u8;
+    let (a, b, f) = (hex(STOPS[i]), hex(STOPS[i + 1]), s - i as f64);
+    let mix = |p: u8, q: u8| (p as f64 + (q as f64 - p as f64) * f).round() as u8;
     RGBColor(mix(a.0, b.0), mix(a.1, b.1), mix(a.2, b.2))
 }
 
@@ -536,25 +529,31 @@ fn colormap(t: f64) -> RGBColor {
 mod tests {
     use super::*;
 
-    fn out_dir(test: &str) -> PathBuf {
-        let dir = std::env::temp_dir().join(format!("eemp-plots-{}-{test}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        dir
+    /// A fresh folder per test and process; kept afterwards only if EEMP_KEEP_PLOTS is set,
+    /// so the pictures can be looked at.
+    struct Out(PathBuf);
+    impl Out {
+        fn new(test: &str) -> Self {
+            let dir =
+                std::env::temp_dir().join(format!("eemp-plots-{}-{test}", std::process::id()));
+            std::fs::create_dir_all(&dir).unwrap();
+            Out(dir)
+        }
+        /// Draws into `name` and checks the PNG signature and the IHDR width.
+        fn check(&self, name: &str, draw: impl FnOnce(&Path) -> Result<(), PlotError>) {
+            let path = self.0.join(name);
+            draw(&path).unwrap();
+            let bytes = std::fs::read(&path).unwrap();
+            assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n", "{name}");
+            assert_eq!(&bytes[12..16], b"IHDR");
+            assert_eq!(u32::from_be_bytes(bytes[16..20].try_into().unwrap()), WIDTH);
+        }
     }
-
-    /// Checks the PNG signature and IHDR width, then removes the folder unless
-    /// EEMP_KEEP_PLOTS is set (to look at the pictures).
-    fn assert_png(path: &Path) {
-        let bytes = std::fs::read(path).unwrap();
-        assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n", "{}", path.display());
-        assert_eq!(&bytes[12..16], b"IHDR");
-        let width = u32::from_be_bytes(bytes[16..20].try_into().unwrap());
-        assert_eq!(width, WIDTH);
-    }
-
-    fn done(dir: &Path) {
-        if std::env::var_os("EEMP_KEEP_PLOTS").is_none() {
-            let _ = std::fs::remove_dir_all(dir);
+    impl Drop for Out {
+        fn drop(&mut self) {
+            if std::env::var_os("EEMP_KEEP_PLOTS").is_none() {
+                let _ = std::fs::remove_dir_all(&self.0);
+            }
         }
     }
 
@@ -579,180 +578,120 @@ mod tests {
         }
     }
 
+    fn grid(nx: usize, ny: usize, f: impl Fn(f64, f64) -> f64) -> HeatmapCell {
+        let x: Vec<f64> = (0..nx).map(|i| i as f64 * 0.1).collect();
+        let y: Vec<f64> = (0..ny).map(|i| -0.7 + i as f64 * 0.1).collect();
+        let z = y
+            .iter()
+            .map(|&b| x.iter().map(|&a| f(a, b)).collect())
+            .collect();
+        HeatmapCell {
+            title: String::new(),
+            x,
+            y,
+            z,
+        }
+    }
+
     #[test]
-    fn line_panels_writes_png_with_markers_gaps_and_constants() {
-        let dir = out_dir("line_panels");
+    fn line_panels_draw_markers_gaps_constants_and_empty_series() {
+        let out = Out::new("line_panels");
         let mut gappy = series("with NaN gap", |t| (3.0 * t).sin());
         gappy.y[100..150].fill(f64::NAN);
         gappy.x[300] = f64::INFINITY;
-        let mut first = panel(
-            "base height",
-            vec![series("z", |t| 0.3 + 0.01 * t.sin()), gappy],
-        );
-        first.markers = vec![
-            (1.0, "push".into()),
-            (3.0, "push".into()),
-            (4.0, "land".into()),
-        ];
-        let many = (0..12)
-            .map(|k| series(&format!("joint {k}"), move |t| t * k as f64))
-            .collect();
+        let mut first = panel("base height", vec![series("z", |t| 0.3 + 0.01 * t), gappy]);
+        first.markers = [(1.0, "push"), (3.0, "push"), (4.0, "land"), (f64::NAN, "x")]
+            .map(|(x, l)| (x, l.to_string()))
+            .to_vec();
+        let many = (0..12).map(|k| series(&format!("joint {k}"), move |t| t * k as f64));
         let panels = [
             first,
             panel("constant", vec![series("zero torque", |_| 0.0)]),
-            panel("twelve joints", many),
+            panel("twelve joints", many.collect()),
             panel(
                 "empty",
                 vec![series("nothing", |_| f64::NAN), Series::default()],
             ),
         ];
-        let path = dir.join("panels.png");
-        line_panels(&path, "Walk 0.5 m/s", &panels).unwrap();
-        assert_png(&path);
-        line_panels(&dir.join("none.png"), "no panels", &[]).unwrap();
-        assert_png(&dir.join("none.png"));
-        done(&dir);
+        out.check("panels.png", |p| line_panels(p, "Walk 0.5 m/s", &panels));
+        out.check("none.png", |p| line_panels(p, "no panels", &[]));
     }
 
     #[test]
-    fn gait_diagram_writes_png() {
-        let dir = out_dir("gait");
+    fn gait_diagram_draws_stance_bars_and_survives_bad_input() {
+        let out = Out::new("gait");
         let time: Vec<f64> = (0..400).map(|i| i as f64 * 0.005).collect();
+        let phase = |t: f64| (t / 0.5).fract();
         let stance: Vec<[bool; 4]> = time
             .iter()
-            .map(|&t| {
-                let phase = (t / 0.5).fract();
-                let a = phase < 0.6;
-                let b = !(0.5..0.9).contains(&phase);
-                [a, b, b, a]
-            })
+            .map(|&t| (phase(t) < 0.6, !(0.5..0.9).contains(&phase(t))))
+            .map(|(a, b)| [a, b, b, a])
             .collect();
-        let path = dir.join("gait.png");
-        gait_diagram(&path, "Trot gait", &time, &stance, ["FL", "FR", "RL", "RR"]).unwrap();
-        assert_png(&path);
+        let legs = ["FL", "FR", "RL", "RR"];
+        out.check("gait.png", |p| {
+            gait_diagram(p, "Trot gait", &time, &stance, legs)
+        });
         let mut bad_time = time.clone();
-        bad_time[10] = f64::NAN;
-        let short = &stance[..5];
-        gait_diagram(
-            &dir.join("odd.png"),
-            "odd",
-            &bad_time,
-            short,
-            ["a", "b", "c", "d"],
-        )
-        .unwrap();
-        gait_diagram(
-            &dir.join("empty.png"),
-            "empty",
-            &[],
-            &[],
-            ["a", "b", "c", "d"],
-        )
-        .unwrap();
-        assert_png(&dir.join("empty.png"));
-        done(&dir);
+        bad_time[2] = f64::NAN;
+        out.check("odd.png", |p| {
+            gait_diagram(p, "odd", &bad_time, &stance[..5], legs)
+        });
+        out.check("empty.png", |p| gait_diagram(p, "empty", &[], &[], legs));
     }
 
     #[test]
-    fn heatmap_writes_png_with_nan_cells() {
-        let dir = out_dir("heatmap");
-        let x: Vec<f64> = (0..20).map(|i| i as f64 * 0.1).collect();
-        let y: Vec<f64> = (0..15).map(|i| -0.7 + i as f64 * 0.1).collect();
-        let mut z: Vec<Vec<f64>> = y
-            .iter()
-            .map(|&b| x.iter().map(|&a| a * a - b).collect())
-            .collect();
-        z[3][4] = f64::NAN;
-        z[14].truncate(10);
-        let path = dir.join("heatmap.png");
-        heatmap(
-            &path,
-            "Max speed",
-            "kp [-]",
-            "kd [-]",
-            "speed [m/s]",
-            &x,
-            &y,
-            &z,
-        )
-        .unwrap();
-        assert_png(&path);
-        let nan = vec![vec![f64::NAN; 2]; 2];
-        heatmap(
-            &dir.join("nan.png"),
-            "all NaN",
-            "x",
-            "y",
-            "z",
+    fn heatmap_greys_nan_and_missing_cells() {
+        let out = Out::new("heatmap");
+        let mut g = grid(20, 15, |a, b| a * a - b);
+        g.z[3][4] = f64::NAN;
+        g.z[14].truncate(10);
+        let map = |name: &str, x: &[f64], y: &[f64], z: &[Vec<f64>]| {
+            out.check(name, |p| {
+                heatmap(p, name, "kp [-]", "kd [-]", "speed [m/s]", x, y, z)
+            });
+        };
+        map("heatmap.png", &g.x, &g.y, &g.z);
+        map(
+            "nan.png",
             &[0.0, 1.0],
             &[1.0, 2.0],
-            &nan,
-        )
-        .unwrap();
-        heatmap(
-            &dir.join("empty.png"),
-            "empty",
-            "x",
-            "y",
-            "z",
-            &[],
-            &[],
-            &[],
-        )
-        .unwrap();
-        assert_png(&dir.join("empty.png"));
-        done(&dir);
+            &vec![vec![f64::NAN; 2]; 2],
+        );
+        map("empty.png", &[], &[], &[]);
     }
 
     #[test]
-    fn heatmap_grid_writes_png_with_shared_scale() {
-        let dir = out_dir("heatmap_grid");
+    fn heatmap_grid_shares_one_scale() {
+        let out = Out::new("heatmap_grid");
         let cells: Vec<HeatmapCell> = (0..5)
             .map(|k| {
-                let x: Vec<f64> = (0..10).map(|i| i as f64).collect();
-                let y: Vec<f64> = (0..8).map(|i| i as f64 * 0.5).collect();
-                let mut z: Vec<Vec<f64>> = y
-                    .iter()
-                    .map(|&b| x.iter().map(|&a| a + b * k as f64).collect())
-                    .collect();
-                z[0][0] = f64::NAN;
+                let mut cell = grid(10, 8, |a, b| a + b * k as f64);
+                cell.z[0][0] = f64::NAN;
                 HeatmapCell {
                     title: format!("payload {k} kg"),
-                    x,
-                    y,
-                    z,
+                    ..cell
                 }
             })
             .collect();
-        let path = dir.join("grid.png");
-        heatmap_grid(
-            &path,
-            "Speed sweep",
-            "kp [-]",
-            "kd [-]",
-            "speed [m/s]",
-            &cells,
-            3,
-        )
-        .unwrap();
-        assert_png(&path);
-        heatmap_grid(&dir.join("empty.png"), "none", "x", "y", "z", &[], 0).unwrap();
-        assert_png(&dir.join("empty.png"));
+        let (x, y, z) = ("kp [-]", "kd [-]", "speed [m/s]");
+        out.check("grid.png", |p| {
+            heatmap_grid(p, "Speed sweep", x, y, z, &cells, 3)
+        });
+        out.check("empty.png", |p| heatmap_grid(p, "none", x, y, z, &[], 0));
         let odd = [HeatmapCell {
             title: "empty cell".into(),
             ..Default::default()
         }];
-        heatmap_grid(&dir.join("odd.png"), "odd", "x", "y", "z", &odd, 5).unwrap();
-        done(&dir);
+        out.check("odd.png", |p| heatmap_grid(p, "odd", x, y, z, &odd, 5));
     }
 
     #[test]
     fn unwritable_path_error_names_the_path() {
-        let dir = out_dir("unwritable");
-        let file = dir.join("a-file");
+        let out = Out::new("unwritable");
+        let file = out.0.join("a-file");
         std::fs::write(&file, b"x").unwrap();
         let path = file.join("plot.png");
-        let shown = path.display().to_string();
+        let one = [vec![1.0]];
         let errors = [
             line_panels(&path, "t", &[panel("p", vec![series("s", |t| t)])]),
             gait_diagram(
@@ -762,30 +701,28 @@ mod tests {
                 &[[true; 4]; 2],
                 ["a", "b", "c", "d"],
             ),
-            heatmap(&path, "t", "x", "y", "z", &[0.0], &[0.0], &[vec![1.0]]),
+            heatmap(&path, "t", "x", "y", "z", &[0.0], &[0.0], &one),
             heatmap_grid(&path, "t", "x", "y", "z", &[], 2),
         ];
         for result in errors {
             let message = result.unwrap_err().to_string();
-            assert!(message.contains(&shown), "{message}");
+            assert!(message.contains(&path.display().to_string()), "{message}");
         }
-        done(&dir);
     }
 
     #[test]
-    fn ranges_are_never_empty() {
+    fn ranges_ticks_and_segments() {
         assert_eq!(axis_range([f64::NAN].into_iter()), (0.0, 1.0));
         let (lo, hi) = axis_range([2.0, 2.0].into_iter());
         assert!(lo < 2.0 && hi > 2.0);
         let (lo, hi) = axis_range([0.0, 10.0, f64::INFINITY].into_iter());
         assert!((lo + 0.5).abs() < 1e-12 && (hi - 10.5).abs() < 1e-12);
-        assert_eq!(
-            cell_edges(&[0.0, 1.0, 3.0]),
-            vec![(0, -0.5, 0.5), (1, 0.5, 2.0), (2, 2.0, 4.0)]
-        );
-        assert_eq!(
-            segments(&series("s", |t| if t < 1.0 { t } else { f64::NAN })).len(),
-            1
-        );
+        let edges = vec![(0, -0.5, 0.5), (1, 0.5, 2.0), (2, 2.0, 4.0)];
+        assert_eq!(cell_edges(&[0.0, 1.0, 3.0]), edges);
+        let f = tick_format((-1.1, 1.1));
+        assert_eq!([f(&-0.0001), f(&0.4), f(&-1.0)], ["0.0", "0.4", "-1.0"]);
+        assert_eq!(tick_format((0.0, 60.0))(&50.0), "50");
+        let gap = series("s", |t| if (1.0..2.0).contains(&t) { f64::NAN } else { t });
+        assert_eq!(segments(&gap).len(), 2);
     }
 }

@@ -42,6 +42,10 @@ pub struct WalkArgs {
     /// Factor on V·ΔT in eq. (6): 0.5 = the paper's eq. (6) (default), 1.0 = its Algorithm 1.
     #[arg(long, default_value_t = 0.5)]
     pub progress_factor: f64,
+    /// Re-evaluate eq. (6) during each swing with the velocity measured at that moment
+    /// (`false`: touchdown fixed at lift-off).
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
+    pub retarget_swing: bool,
     /// Floor friction coefficient (slippery ground below ~0.4); default: the robot file's.
     #[arg(long)]
     pub friction: Option<f64>,
@@ -83,6 +87,7 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
     let planner = PlannerConfig {
         gait,
         progress_factor: args.progress_factor,
+        retarget_swing: args.retarget_swing,
         ..Default::default()
     };
     let command = VelocityCommand {
@@ -233,6 +238,7 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
         "params": params,
         "params_table": args.params_table.as_ref().map(|p| p.display().to_string()),
         "progress_factor": args.progress_factor,
+        "retarget_swing": args.retarget_swing,
         "duration_s": st.sim_time_s,
         "metrics_window_s": [spec.metrics_start_s, st.sim_time_s],
         "fell": st.fell,

@@ -37,6 +37,12 @@ pub struct PlannerConfig {
     /// The body reference follows a step in the command at most this fast, m/s² (the MPC
     /// otherwise asks for forces the friction cone cannot give).
     pub max_accel_mps2: f64,
+    /// Re-evaluate eq. (6) at every control step of a running swing with the velocity measured
+    /// then, and move the touchdown point accordingly (as the MIT Cheetah controllers do). On
+    /// by default: a touchdown fixed at lift-off cannot catch the trunk tipping about the
+    /// diagonal of a trot pair, which made a Table II trot at 0.1 m/s track to 0.157 m/s RMSE
+    /// instead of 0.059 (see the README's walking table).
+    pub retarget_swing: bool,
 }
 
 impl Default for PlannerConfig {
@@ -45,6 +51,7 @@ impl Default for PlannerConfig {
             gait: Gait::Trot,
             progress_factor: 0.5,
             max_accel_mps2: 1.0,
+            retarget_swing: true,
         }
     }
 }
@@ -190,6 +197,9 @@ impl EemPlanner {
                 self.swings[leg] = None;
             }
         }
+        if self.config.retarget_swing {
+            self.retarget_swings(t, state, params);
+        }
         // Stance feet on the ground: the ground height under the robot.
         let stance = self.swings.map(|_, s| s.is_none());
         let (sum_z, n_z) = Leg::ALL
@@ -277,6 +287,42 @@ impl EemPlanner {
         }
         let values = self.ellipse_values(state, feet_world, params);
         gait::next_swing(self.config.gait, &values, &self.previous_legs)
+    }
+
+    /// Moves the touchdown point of every running swing to where eq. (6) puts it now: the
+    /// ellipse centre carried forward at the commanded velocity for the time left (as at
+    /// lift-off), plus p_prog with the velocity measured now. (Carrying the centre forward at
+    /// the measured velocity instead tracked worse at 0.5–1.0 m/s.) The lift-off point stays, so the trajectory keeps its
+    /// shape and only its x/y span changes.
+    fn retarget_swings(&mut self, t: f64, state: &RobotState, params: &PlannerParams) {
+        let body = &state.body;
+        let heading = Rotation3::from_axis_angle(&Vector3::z_axis(), body.rpy().z);
+        let v_cur = body.v_heading();
+        let prog = touchdown::progress(
+            &self.v_ref,
+            &Vector2::new(v_cur.x, v_cur.y),
+            params.swing_time_s,
+            params.body_height_m,
+            self.config.progress_factor,
+        );
+        for leg in Leg::ALL {
+            let Some(swing) = self.swings[leg].as_mut() else {
+                continue;
+            };
+            let remaining_s = swing.start_s + swing.trajectory.duration_s - t;
+            if t <= swing.start_s || remaining_s <= 0.0 {
+                continue;
+            }
+            let centre_world =
+                body.p_world + body.r_world_body * self.kinematics.nominal_foot_body(leg);
+            let target = centre_world
+                + heading * Vector3::new(self.v_ref.x, self.v_ref.y, 0.0) * remaining_s
+                + heading * Vector3::new(prog.x, prog.y, 0.0);
+            let start = swing.trajectory.start_body;
+            swing.trajectory.displacement_xy = Vector2::new(target.x - start.x, target.y - start.y);
+            swing.touchdown_world.x = target.x;
+            swing.touchdown_world.y = target.y;
+        }
     }
 
     fn start_swing(

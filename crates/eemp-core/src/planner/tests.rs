@@ -146,3 +146,44 @@ fn no_gait_starts_a_swing_while_another_runs() {
         );
     }
 }
+
+#[test]
+fn retargeting_moves_the_touchdown_with_the_measured_velocity() {
+    let robot = RobotConfig::a1();
+    let kin = LegKinematics::new(&robot);
+    let mut p = EemPlanner::new(
+        PlannerConfig {
+            gait: Gait::Trot,
+            retarget_swing: true,
+            ..Default::default()
+        },
+        LegKinematics::new(&robot),
+        0.02,
+        10,
+        0.025,
+    )
+    .unwrap();
+    let (state, feet) = standing(&kin, 0.08);
+    let cmd = VelocityCommand::default();
+    let params = PlannerParams::default();
+    let plan = p.plan(0.0, &state, &feet, &cmd, &params);
+    let leg = Leg::ALL.into_iter().find(|l| !plan.stance[*l]).unwrap();
+    let start = p.swings[leg].unwrap().trajectory.start_body;
+    // 0.1 s later the trunk has been pushed sideways: it moves at (0.1, −0.3) m/s from
+    // x = 0.09. The target is the ellipse centre now, carried on at the commanded velocity
+    // (0) for the 0.15 s left, plus eq. (6) with V_cur = (0.1, −0.3) and V_des = 0.
+    let (mut pushed, _) = standing(&kin, 0.09);
+    pushed.body.v_world = Vector3::new(0.1, -0.3, 0.0);
+    p.plan(0.1, &pushed, &feet, &cmd, &params);
+    let swing = p.swings[leg].unwrap();
+    let k = (0.31f64 / 9.81).sqrt();
+    let centre = pushed.body.p_world + kin.nominal_foot_body(leg);
+    let expected_x = centre.x + 0.1 * k;
+    let expected_y = centre.y - 0.3 * k;
+    assert!((swing.touchdown_world.x - expected_x).abs() < 1e-9);
+    assert!((swing.touchdown_world.y - expected_y).abs() < 1e-9);
+    // The lift-off point and the trajectory's end follow: it ends on the new target.
+    assert_eq!(swing.trajectory.start_body, start);
+    let end = swing.trajectory.sample(swing.trajectory.duration_s).p_body;
+    assert!((end.x - expected_x).abs() < 1e-9 && (end.y - expected_y).abs() < 1e-9);
+}

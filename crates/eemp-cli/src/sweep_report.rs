@@ -1,0 +1,346 @@
+//! `eemp sweep report DIR`: the study's figures (drawn with [`crate::plots`] from the data
+//! `eemp-study` selects) and the report files.
+//!
+//! Writes `DIR/tables/a1_<gait>.toml`, `DIR/figures/*.png`, `DIR/report.md` (figures linked) and
+//! `DIR/report.html` (figures embedded).
+
+use crate::plots::{heatmap_grid, line_panels, HeatmapCell, Panel, Series};
+use eemp_core::planner::Gait;
+use eemp_study::report::{self, fig5_speeds, Figure, ReportInput};
+use eemp_study::select::{GaitStudy, Study};
+use eemp_study::store::{load_results, load_sessions, load_stored_config, RESULTS_FILE};
+use std::path::Path;
+
+pub const FIGURES_DIR: &str = "figures";
+
+/// Writes the report of the sweep folder `dir`; returns the written paths.
+pub fn write_report(dir: &Path) -> Result<Vec<String>, String> {
+    let config = load_stored_config(dir)
+        .map_err(|e| e.to_string())?
+        .ok_or_else(|| format!("{}: no sweep.toml: not a sweep folder", dir.display()))?;
+    let results = dir.join(RESULTS_FILE);
+    let loaded = load_results(&results).map_err(|e| e.to_string())?;
+    if loaded.dropped_tail.is_some() {
+        eprintln!(
+            "note: ignored a partial last line in {} (an interrupted run)",
+            results.display()
+        );
+    }
+    if loaded.rows.len() < config.grid.run_count() {
+        eprintln!(
+            "note: {} of {} runs have results; the report covers those",
+            loaded.rows.len(),
+            config.grid.run_count()
+        );
+    }
+    let sessions = load_sessions(dir).map_err(|e| e.to_string())?;
+    let study = Study::analyse(&loaded.rows, config.selection);
+    let tables = report::write_tables(dir, &study).map_err(|e| e.to_string())?;
+    let figures = draw_figures(dir, &config.grid.speed_mps, &study)?;
+    let mut written: Vec<String> = tables
+        .iter()
+        .map(|t| dir.join(&t.1).display().to_string())
+        .collect();
+    written.extend(
+        figures
+            .iter()
+            .map(|f| dir.join(&f.file).display().to_string()),
+    );
+    let doc = report::build(ReportInput {
+        dir,
+        config: &config,
+        rows: &loaded.rows,
+        sessions: &sessions,
+        study: &study,
+        tables: &tables,
+        figures,
+    });
+    for (name, text) in [
+        ("report.md", doc.to_markdown()),
+        ("report.html", doc.to_html()),
+    ] {
+        let path = dir.join(name);
+        std::fs::write(&path, text).map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        written.push(path.display().to_string());
+    }
+    Ok(written)
+}
+
+fn draw_figures(dir: &Path, grid_speeds: &[f64], study: &Study) -> Result<Vec<Figure>, String> {
+    let mut figures = Vec::new();
+    let mut add =
+        |file: &str, title: &str, caption: String, draw: &dyn Fn(&Path) -> Result<(), String>| {
+            let rel = format!("{FIGURES_DIR}/{file}");
+            let path = dir.join(&rel);
+            draw(&path)?;
+            let png =
+                std::fs::read(&path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+            figures.push(Figure {
+                file: rel,
+                title: title.into(),
+                caption,
+                png,
+            });
+            Ok::<(), String>(())
+        };
+
+    // Fig. 5: trot and walk side by side, one row per speed.
+    let mut gaits: Vec<Gait> = [Gait::Trot, Gait::Walk]
+        .into_iter()
+        .filter(|g| study.gait(*g).is_some())
+        .collect();
+    if gaits.is_empty() {
+        gaits = study.gaits.iter().map(|g| g.gait).collect();
+    }
+    let speeds = fig5_speeds(grid_speeds);
+    let cells: Vec<HeatmapCell> = speeds
+        .iter()
+        .flat_map(|&(target, v)| {
+            gaits.iter().map(move |&g| {
+                let map = study.cot_map(g, v);
+                let note = if (target - v).abs() > 1e-9 {
+                    format!(" (paper: {target} m/s)")
+                } else {
+                    String::new()
+                };
+                HeatmapCell {
+                    title: format!("{g}, {v} m/s{note}"),
+                    x: map.swing_time_s,
+                    y: map.ellipse_rx_m,
+                    z: map.cot,
+                }
+            })
+        })
+        .collect();
+    let title5 = "Fig. 5 analogue: CoT over swing time and ellipse r_x";
+    add(
+        "fig5_cot_contours.png",
+        title5,
+        format!(
+            "CoT (dimensionless, one colour scale) per commanded speed (rows) for {} (columns), \
+             over r_x (y) and ΔT (x); each cell is the lowest seed-averaged CoT over h_step, X_z \
+             and r_y among points that stood in every seed; grey: every such point fell. The \
+             paper's 0.01 m/s is below Table I's 0.05 m/s: the nearest grid speed is shown.",
+            gaits
+                .iter()
+                .map(Gait::to_string)
+                .collect::<Vec<_>>()
+                .join(" and ")
+        ),
+        &|p| {
+            heatmap_grid(
+                p,
+                title5,
+                "swing time ΔT [s]",
+                "ellipse r_x [m]",
+                "CoT [-]",
+                &cells,
+                gaits.len(),
+            )
+            .map_err(|e| e.to_string())
+        },
+    )?;
+
+    // Fig. 6: walk vs trot, best per speed, with the walk instability marker.
+    let best_series = |g: &GaitStudy, f: fn(&eemp_study::select::Scored) -> f64| Series {
+        label: format!("{} (best per speed)", g.gait),
+        x: g.speeds.iter().map(|s| s.speed_mps).collect(),
+        y: g.speeds
+            .iter()
+            .map(|s| s.best.as_ref().map_or(f64::NAN, f))
+            .collect(),
+    };
+    let markers: Vec<(f64, String)> = study
+        .gait(Gait::Walk)
+        .and_then(|w| w.instability)
+        .map(|i| {
+            (
+                i.speed_mps,
+                format!("walk unstable from {} m/s", i.speed_mps),
+            )
+        })
+        .into_iter()
+        .collect();
+    let panel = |title: &str, y_label: &str, f: fn(&eemp_study::select::Scored) -> f64| Panel {
+        title: title.into(),
+        x_label: "commanded speed [m/s]".into(),
+        y_label: y_label.into(),
+        series: gaits
+            .iter()
+            .filter_map(|g| study.gait(*g))
+            .map(|g| best_series(g, f))
+            .collect(),
+        markers: markers.clone(),
+    };
+    let panels6 = [
+        panel("Cost of transport", "CoT [-]", |s| s.cot()),
+        panel("Force manipulability (eq. 9)", "manipulability [-]", |s| {
+            s.manipulability()
+        }),
+    ];
+    let title6 = "Fig. 6 analogue: walk vs trot";
+    add(
+        "fig6_walk_vs_trot.png",
+        title6,
+        "CoT (top) and manipulability (bottom) of the selected point per speed; gaps: no \
+         selectable point. Red dashed line: where walk becomes unstable (all points fell, none \
+         tracked the command, or the best CoT jumped by more than 50 %)."
+            .into(),
+        &|p| line_panels(p, title6, &panels6).map_err(|e| e.to_string()),
+    )?;
+
+    // Per-speed table vs best constant parameters, per gait.
+    let panels_c: Vec<Panel> = study
+        .gaits
+        .iter()
+        .map(|g| {
+            let table = best_series(g, |s| s.cot());
+            let mut series = vec![Series {
+                label: "per-speed table".into(),
+                ..table
+            }];
+            let mut title = format!("{}: no constant parameters work at every speed", g.gait);
+            if let Some(c) = &g.constant {
+                let p = &c.params;
+                series.push(Series {
+                    label: "best constant".into(),
+                    x: c.per_speed
+                        .iter()
+                        .map(|s| s.summary.point.speed_mps)
+                        .collect(),
+                    y: c.per_speed.iter().map(|s| s.cot()).collect(),
+                });
+                title = format!(
+                    "{}: constant ΔT {} s, h {} m, X_z {} m, r ({}, {}) m; table {:.1} % lower \
+                     on average",
+                    g.gait,
+                    p.swing_time_s,
+                    p.step_height_m,
+                    p.body_height_m,
+                    p.ellipse_rx_m,
+                    p.ellipse_ry_m,
+                    g.improvement_pct.unwrap_or(f64::NAN)
+                );
+            }
+            Panel {
+                title,
+                x_label: "commanded speed [m/s]".into(),
+                y_label: "CoT [-]".into(),
+                series,
+                markers: vec![],
+            }
+        })
+        .collect();
+    let title_c = "CoT: per-speed table vs best constant parameters";
+    add(
+        "cot_table_vs_constant.png",
+        title_c,
+        "CoT of the per-speed lookup table and of the gait's best constant parameters (Table II \
+         analogue) at the speeds the table covers."
+            .into(),
+        &|p| line_panels(p, title_c, &panels_c).map_err(|e| e.to_string()),
+    )?;
+    Ok(figures)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use eemp_core::planner::params_table::ParamsTable;
+    use eemp_study::grid::RunSpec;
+    use eemp_study::{run_sweep, ProgressMode, RunOutcome, SweepConfig, SweepOptions};
+
+    /// A made-up study: CoT falls with speed and ΔT; walk falls at 0.7 m/s.
+    fn fake(spec: &RunSpec) -> RunOutcome {
+        let p = &spec.point;
+        let walk = p.gait == Gait::Walk;
+        RunOutcome {
+            fell: walk && p.speed_mps > 0.6,
+            cot: Some(
+                0.1 / p.speed_mps + 1.0 - p.params.swing_time_s
+                    + 2.0 * (p.params.ellipse_rx_m - 0.07).abs()
+                    - if walk { 0.2 } else { 0.0 },
+            ),
+            manipulability: Some(3.0 + p.params.body_height_m),
+            vel_rmse_mps: Some(0.1),
+            distance_m: 1.0,
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn report_has_tables_figures_and_the_paper_comparison() {
+        let dir = std::env::temp_dir().join(format!("eemp-sweep-report-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let config = SweepConfig::parse(
+            r#"
+[grid]
+gaits = ["trot", "walk"]
+speed_mps = [0.05, 0.1, 0.3, 0.5, 0.7, 1.0]
+swing_time_s = { min = 0.1, max = 0.25, steps = 4 }
+step_height_m = [0.1]
+body_height_m = [0.28, 0.31]
+ellipse_rx_m = [0.03, 0.07, 0.11]
+ellipse_ry_m = [0.05]
+duration_s = 20
+seeds = [0]
+"#,
+            Path::new("t.toml"),
+        )
+        .unwrap();
+        let options = SweepOptions {
+            threads: Some(2),
+            shard: None,
+            progress: ProgressMode::Hidden,
+        };
+        run_sweep(&config, &dir, &options, fake).unwrap();
+        let written = write_report(&dir).unwrap();
+        assert_eq!(written.len(), 2 + 3 + 2, "{written:?}");
+        for g in ["trot", "walk"] {
+            let t = ParamsTable::load(&dir.join(format!("tables/a1_{g}.toml"))).unwrap();
+            assert!(t.entries.iter().all(|e| e.cot.is_some()));
+            // Highest ΔT and the r_x nearest 0.07 win everywhere.
+            assert!(t
+                .entries
+                .iter()
+                .all(|e| e.swing_time_s == 0.25 && e.ellipse_rx_m == 0.07));
+        }
+        let md = std::fs::read_to_string(dir.join("report.md")).unwrap();
+        for needle in [
+            "Paper vs this project",
+            "35.5 %",
+            "34.5 %",
+            "13.3 %",
+            "59 %",
+            "walk becomes unstable",
+            "0.7 m/s (every grid point fell)",
+            "figures/fig5_cot_contours.png",
+            "tables/a1_trot.toml",
+        ] {
+            assert!(md.contains(needle), "'{needle}' not in report.md");
+        }
+        let html = std::fs::read_to_string(dir.join("report.html")).unwrap();
+        assert_eq!(
+            html.matches("src=\"data:image/png;base64,iVBORw0KGgo")
+                .count(),
+            3
+        );
+        for f in [
+            "fig5_cot_contours",
+            "fig6_walk_vs_trot",
+            "cot_table_vs_constant",
+        ] {
+            let png = std::fs::read(dir.join(format!("figures/{f}.png"))).unwrap();
+            assert_eq!(&png[..4], b"\x89PNG");
+        }
+        if std::env::var_os("EEMP_KEEP_PLOTS").is_none() {
+            std::fs::remove_dir_all(&dir).unwrap();
+        }
+    }
+
+    #[test]
+    fn report_of_a_folder_without_sweep_toml_is_an_error() {
+        let err = write_report(Path::new("/nonexistent/eemp-sweep")).unwrap_err();
+        assert!(err.contains("not a sweep folder"), "{err}");
+    }
+}

@@ -1,0 +1,676 @@
+//! The sweep file (`sweeps/*.toml`): the grid's axes and the selection settings, checked against
+//! the paper's Table I before anything runs.
+//!
+//! ```toml
+//! [grid]
+//! gaits = ["trot", "walk"]                              # trot, walk, free
+//! speed_mps = [0.1, 0.5]                                # V_x,des, Table I: 0.05–1.00
+//! swing_time_s = { min = 0.10, max = 0.25, steps = 4 }  # ΔT, 0.10–0.25 (ends included)
+//! step_height_m = [0.10]                                # h_step, 0.05–0.15
+//! body_height_m = 0.31                                  # X_z, 0.28–0.311 (a number = one value)
+//! ellipse_rx_m = [0.04, 0.07]                           # r_x, 0.01–0.15
+//! ellipse_ry_m = [0.05]                                 # r_y, 0.01–0.15
+//! duration_s = 20.0                                     # simulated seconds per run, 1–3600
+//! seeds = [0]                                           # 0 = unperturbed start
+//!
+//! [selection]                                           # optional, these are the defaults
+//! max_vel_rmse_mps = 0.25
+//! manipulability_weight = 0.01
+//! interpolation = "nearest"
+//! ```
+
+use crate::error::StudyError;
+use eemp_core::planner::params::table_i;
+use eemp_core::planner::params_table::Interpolation;
+use eemp_core::planner::Gait;
+use serde::de::{self, Deserializer, MapAccess, SeqAccess, Visitor};
+use serde::{Deserialize, Serialize};
+use std::fmt;
+use std::path::Path;
+
+/// Every grid value is rounded to 1e-6 (1 µm, 1 µs, 1 µm/s), so a value has one spelling:
+/// `{ min = 0.1, max = 0.25, steps = 4 }` gives exactly 0.1, 0.15, 0.2, 0.25.
+pub fn quantize(v: f64) -> f64 {
+    (v * 1e6).round() / 1e6
+}
+
+/// Most runs one grid may hold (a guard against a typo such as `steps = 1000`).
+pub const MAX_RUNS: usize = 1_000_000;
+
+/// Allowed simulated duration of one run, s.
+pub const DURATION_S: [f64; 2] = [1.0, 3600.0];
+
+/// Gaits in canonical order (the order of the run list).
+pub const GAIT_ORDER: [Gait; 3] = [Gait::Trot, Gait::Walk, Gait::Free];
+
+/// Position of a gait in [`GAIT_ORDER`].
+pub fn gait_rank(gait: Gait) -> usize {
+    GAIT_ORDER
+        .iter()
+        .position(|g| *g == gait)
+        .expect("every gait is listed")
+}
+
+/// One axis as written in the file: a list (or a single number), or `{ min, max, steps }`
+/// evenly spaced with both ends included.
+#[derive(Clone, Debug, PartialEq)]
+pub enum AxisSpec {
+    List(Vec<f64>),
+    Range { min: f64, max: f64, steps: i64 },
+}
+
+/// The validated grid: every axis quantised, sorted ascending and free of repeats; gaits in
+/// [`GAIT_ORDER`]. Two grids are the same sweep exactly when they are equal.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Grid {
+    pub gaits: Vec<Gait>,
+    /// Commanded forward speed V_x,des, m/s.
+    pub speed_mps: Vec<f64>,
+    /// ΔT, s.
+    pub swing_time_s: Vec<f64>,
+    /// h_step, m.
+    pub step_height_m: Vec<f64>,
+    /// X_z, m.
+    pub body_height_m: Vec<f64>,
+    /// r_x, m.
+    pub ellipse_rx_m: Vec<f64>,
+    /// r_y, m.
+    pub ellipse_ry_m: Vec<f64>,
+    /// Simulated time of every run, s.
+    pub duration_s: f64,
+    /// Start seeds (0 = unperturbed start; see `WalkSpec::seed`).
+    pub seeds: Vec<u64>,
+}
+
+impl Grid {
+    /// Number of grid points (runs without the seed axis).
+    pub fn point_count(&self) -> usize {
+        self.gaits.len()
+            * self.speed_mps.len()
+            * self.swing_time_s.len()
+            * self.step_height_m.len()
+            * self.body_height_m.len()
+            * self.ellipse_rx_m.len()
+            * self.ellipse_ry_m.len()
+    }
+
+    /// Number of runs (grid points × seeds).
+    pub fn run_count(&self) -> usize {
+        self.point_count() * self.seeds.len()
+    }
+
+    /// A readable account of how `self` differs from `other` (empty when equal).
+    pub fn differences(&self, other: &Grid) -> Vec<String> {
+        let mut out = Vec::new();
+        let mut axis = |key: &str, a: &[f64], b: &[f64]| {
+            if a != b {
+                out.push(format!("{key}: {a:?} vs {b:?}"));
+            }
+        };
+        axis("speed_mps", &self.speed_mps, &other.speed_mps);
+        axis("swing_time_s", &self.swing_time_s, &other.swing_time_s);
+        axis("step_height_m", &self.step_height_m, &other.step_height_m);
+        axis("body_height_m", &self.body_height_m, &other.body_height_m);
+        axis("ellipse_rx_m", &self.ellipse_rx_m, &other.ellipse_rx_m);
+        axis("ellipse_ry_m", &self.ellipse_ry_m, &other.ellipse_ry_m);
+        axis("duration_s", &[self.duration_s], &[other.duration_s]);
+        if self.gaits != other.gaits {
+            out.push(format!("gaits: {:?} vs {:?}", self.gaits, other.gaits));
+        }
+        if self.seeds != other.seeds {
+            out.push(format!("seeds: {:?} vs {:?}", self.seeds, other.seeds));
+        }
+        out
+    }
+}
+
+/// How the report picks parameters (`[selection]`).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct SelectionConfig {
+    /// Grid points whose seed-averaged velocity RMSE exceeds this are excluded, m/s
+    /// (a run that does not follow the command is not a valid way to move at that speed).
+    pub max_vel_rmse_mps: f64,
+    /// Weight w of the robustness term in the score `cot − w · manipulability`; 0 = CoT only.
+    pub manipulability_weight: f64,
+    /// Lookup between the tabulated speeds in the written tables.
+    pub interpolation: Interpolation,
+}
+
+impl Default for SelectionConfig {
+    fn default() -> Self {
+        SelectionConfig {
+            max_vel_rmse_mps: 0.25,
+            manipulability_weight: 0.01,
+            interpolation: Interpolation::Nearest,
+        }
+    }
+}
+
+/// A validated sweep file.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct SweepConfig {
+    pub grid: Grid,
+    pub selection: SelectionConfig,
+}
+
+impl SweepConfig {
+    /// Reads and validates a sweep file; errors name the file and the key.
+    pub fn load(path: &Path) -> Result<Self, StudyError> {
+        let text = std::fs::read_to_string(path).map_err(|e| StudyError::read(path, e))?;
+        Self::parse(&text, path)
+    }
+
+    /// Validates sweep-file text; `path` is only used in messages.
+    pub fn parse(text: &str, path: &Path) -> Result<Self, StudyError> {
+        let raw: RawFile = toml::from_str(text).map_err(|e| StudyError::Parse {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        })?;
+        let v = Validator { path };
+        let g = &raw.grid;
+        let grid = Grid {
+            gaits: v.gaits(&g.gaits)?,
+            speed_mps: v.axis("speed_mps", &g.speed_mps, table_i::SPEED_MPS, "m/s")?,
+            swing_time_s: v.axis("swing_time_s", &g.swing_time_s, table_i::SWING_TIME_S, "s")?,
+            step_height_m: v.axis(
+                "step_height_m",
+                &g.step_height_m,
+                table_i::STEP_HEIGHT_M,
+                "m",
+            )?,
+            body_height_m: v.axis(
+                "body_height_m",
+                &g.body_height_m,
+                table_i::BODY_HEIGHT_M,
+                "m",
+            )?,
+            ellipse_rx_m: v.axis(
+                "ellipse_rx_m",
+                &g.ellipse_rx_m,
+                table_i::ELLIPSE_AXIS_M,
+                "m",
+            )?,
+            ellipse_ry_m: v.axis(
+                "ellipse_ry_m",
+                &g.ellipse_ry_m,
+                table_i::ELLIPSE_AXIS_M,
+                "m",
+            )?,
+            duration_s: v.duration(g.duration_s.0)?,
+            seeds: v.seeds(&g.seeds)?,
+        };
+        if grid.run_count() > MAX_RUNS {
+            return Err(v.error(
+                "grid",
+                format!(
+                    "{} runs is more than the {MAX_RUNS} one sweep may hold; use fewer values",
+                    grid.run_count()
+                ),
+            ));
+        }
+        let selection = v.selection(&raw.selection)?;
+        Ok(SweepConfig { grid, selection })
+    }
+
+    /// The canonical file text (explicit sorted lists), as stored in a sweep folder; parsing it
+    /// gives back an equal config.
+    pub fn to_toml(&self) -> String {
+        toml::to_string(self).expect("a sweep config serialises")
+    }
+}
+
+struct Validator<'a> {
+    path: &'a Path,
+}
+
+impl Validator<'_> {
+    fn error(&self, key: &str, message: String) -> StudyError {
+        StudyError::Config {
+            path: self.path.to_path_buf(),
+            key: key.to_string(),
+            message,
+        }
+    }
+
+    fn gaits(&self, names: &[String]) -> Result<Vec<Gait>, StudyError> {
+        if names.is_empty() {
+            return Err(self.error(
+                "grid.gaits",
+                "empty list: give at least one of trot, walk, free".into(),
+            ));
+        }
+        let mut gaits = Vec::new();
+        for (i, name) in names.iter().enumerate() {
+            let gait: Gait = name
+                .parse()
+                .map_err(|e: String| self.error(&format!("grid.gaits[{i}]"), e))?;
+            if gaits.contains(&gait) {
+                return Err(self.error(
+                    &format!("grid.gaits[{i}]"),
+                    format!("'{gait}' is listed twice"),
+                ));
+            }
+            gaits.push(gait);
+        }
+        gaits.sort_by_key(|g| gait_rank(*g));
+        Ok(gaits)
+    }
+
+    fn axis(
+        &self,
+        name: &str,
+        spec: &AxisSpec,
+        [lo, hi]: [f64; 2],
+        unit: &str,
+    ) -> Result<Vec<f64>, StudyError> {
+        let key = format!("grid.{name}");
+        let in_range = |k: &str, v: f64| {
+            if v.is_finite() && v >= lo && v <= hi {
+                Ok(())
+            } else {
+                Err(self.error(
+                    k,
+                    format!("{v} is out of range: allowed [{lo}, {hi}] {unit} (Table I)"),
+                ))
+            }
+        };
+        let mut values = match spec {
+            AxisSpec::List(list) => {
+                if list.is_empty() {
+                    return Err(self.error(
+                        &key,
+                        format!("empty list: give at least one value in [{lo}, {hi}] {unit}"),
+                    ));
+                }
+                for (i, v) in list.iter().enumerate() {
+                    in_range(&format!("{key}[{i}]"), *v)?;
+                }
+                list.iter().map(|v| quantize(*v)).collect::<Vec<f64>>()
+            }
+            &AxisSpec::Range { min, max, steps } => {
+                in_range(&format!("{key}.min"), min)?;
+                in_range(&format!("{key}.max"), max)?;
+                if min > max {
+                    return Err(self.error(&key, format!("min {min} is greater than max {max}")));
+                }
+                if steps < 1 {
+                    return Err(self.error(
+                        &format!("{key}.steps"),
+                        format!("{steps} is out of range: allowed 1 or more"),
+                    ));
+                }
+                if steps == 1 && min != max {
+                    return Err(self.error(
+                        &format!("{key}.steps"),
+                        format!("1 step needs min == max (got {min} and {max}); use 2 or more"),
+                    ));
+                }
+                if steps as usize > MAX_RUNS {
+                    return Err(self.error(
+                        &format!("{key}.steps"),
+                        format!("{steps} is out of range: allowed at most {MAX_RUNS}"),
+                    ));
+                }
+                let n = steps as usize;
+                (0..n)
+                    .map(|i| {
+                        let f = if n == 1 {
+                            0.0
+                        } else {
+                            i as f64 / (n - 1) as f64
+                        };
+                        quantize(min + f * (max - min))
+                    })
+                    .collect()
+            }
+        };
+        values.sort_by(f64::total_cmp);
+        if let Some(w) = values.windows(2).find(|w| w[0] == w[1]) {
+            return Err(self.error(
+                &key,
+                format!(
+                    "{} appears twice (values are compared at 1e-6 resolution)",
+                    w[0]
+                ),
+            ));
+        }
+        Ok(values)
+    }
+
+    fn duration(&self, v: f64) -> Result<f64, StudyError> {
+        let [lo, hi] = DURATION_S;
+        if v.is_finite() && (lo..=hi).contains(&v) {
+            Ok(quantize(v))
+        } else {
+            Err(self.error(
+                "grid.duration_s",
+                format!("{v} is out of range: allowed [{lo}, {hi}] s"),
+            ))
+        }
+    }
+
+    fn seeds(&self, seeds: &[i64]) -> Result<Vec<u64>, StudyError> {
+        if seeds.is_empty() {
+            return Err(self.error(
+                "grid.seeds",
+                "empty list: give at least one seed (0 = unperturbed start)".into(),
+            ));
+        }
+        let mut out = Vec::new();
+        for (i, s) in seeds.iter().enumerate() {
+            let s = u64::try_from(*s).map_err(|_| {
+                self.error(
+                    &format!("grid.seeds[{i}]"),
+                    format!("{s} is out of range: allowed 0 or more"),
+                )
+            })?;
+            out.push(s);
+        }
+        out.sort_unstable();
+        if let Some(w) = out.windows(2).find(|w| w[0] == w[1]) {
+            return Err(self.error("grid.seeds", format!("{} appears twice", w[0])));
+        }
+        Ok(out)
+    }
+
+    fn selection(&self, raw: &RawSelection) -> Result<SelectionConfig, StudyError> {
+        let d = SelectionConfig::default();
+        let rmse = raw.max_vel_rmse_mps.map_or(d.max_vel_rmse_mps, |n| n.0);
+        if rmse.is_nan() || rmse <= 0.0 {
+            return Err(self.error(
+                "selection.max_vel_rmse_mps",
+                format!("{rmse} is out of range: allowed (0, inf] m/s (inf = no limit)"),
+            ));
+        }
+        let w = raw
+            .manipulability_weight
+            .map_or(d.manipulability_weight, |n| n.0);
+        if !(w.is_finite() && (0.0..=10.0).contains(&w)) {
+            return Err(self.error(
+                "selection.manipulability_weight",
+                format!("{w} is out of range: allowed [0, 10] (0 = CoT only)"),
+            ));
+        }
+        Ok(SelectionConfig {
+            max_vel_rmse_mps: rmse,
+            manipulability_weight: w,
+            interpolation: raw.interpolation.unwrap_or(d.interpolation),
+        })
+    }
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawFile {
+    grid: RawGrid,
+    #[serde(default)]
+    selection: RawSelection,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawGrid {
+    gaits: Vec<String>,
+    speed_mps: AxisSpec,
+    swing_time_s: AxisSpec,
+    step_height_m: AxisSpec,
+    body_height_m: AxisSpec,
+    ellipse_rx_m: AxisSpec,
+    ellipse_ry_m: AxisSpec,
+    duration_s: Number,
+    seeds: Vec<i64>,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct RawSelection {
+    max_vel_rmse_mps: Option<Number>,
+    manipulability_weight: Option<Number>,
+    interpolation: Option<Interpolation>,
+}
+
+/// A TOML number, integer or float (`0` and `0.0` alike).
+#[derive(Clone, Copy, Debug)]
+struct Number(f64);
+
+impl<'de> Deserialize<'de> for Number {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl Visitor<'_> for V {
+            type Value = Number;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a number")
+            }
+            fn visit_f64<E: de::Error>(self, v: f64) -> Result<Number, E> {
+                Ok(Number(v))
+            }
+            fn visit_i64<E: de::Error>(self, v: i64) -> Result<Number, E> {
+                Ok(Number(v as f64))
+            }
+            fn visit_u64<E: de::Error>(self, v: u64) -> Result<Number, E> {
+                Ok(Number(v as f64))
+            }
+        }
+        d.deserialize_any(V)
+    }
+}
+
+impl<'de> Deserialize<'de> for AxisSpec {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> Visitor<'de> for V {
+            type Value = AxisSpec;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a number, a list of numbers, or a table { min, max, steps }")
+            }
+            fn visit_f64<E: de::Error>(self, v: f64) -> Result<AxisSpec, E> {
+                Ok(AxisSpec::List(vec![v]))
+            }
+            fn visit_i64<E: de::Error>(self, v: i64) -> Result<AxisSpec, E> {
+                Ok(AxisSpec::List(vec![v as f64]))
+            }
+            fn visit_u64<E: de::Error>(self, v: u64) -> Result<AxisSpec, E> {
+                Ok(AxisSpec::List(vec![v as f64]))
+            }
+            fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<AxisSpec, A::Error> {
+                let mut values = Vec::new();
+                while let Some(Number(v)) = seq.next_element()? {
+                    values.push(v);
+                }
+                Ok(AxisSpec::List(values))
+            }
+            fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<AxisSpec, A::Error> {
+                const FIELDS: &[&str] = &["min", "max", "steps"];
+                let (mut min, mut max, mut steps) = (None, None, None);
+                while let Some(key) = map.next_key::<String>()? {
+                    match key.as_str() {
+                        "min" => min = Some(map.next_value::<Number>()?.0),
+                        "max" => max = Some(map.next_value::<Number>()?.0),
+                        "steps" => steps = Some(map.next_value::<i64>()?),
+                        other => return Err(de::Error::unknown_field(other, FIELDS)),
+                    }
+                }
+                Ok(AxisSpec::Range {
+                    min: min.ok_or_else(|| de::Error::missing_field("min"))?,
+                    max: max.ok_or_else(|| de::Error::missing_field("max"))?,
+                    steps: steps.ok_or_else(|| de::Error::missing_field("steps"))?,
+                })
+            }
+        }
+        d.deserialize_any(V)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const GOOD: &str = r#"
+[grid]
+gaits = ["walk", "trot"]
+speed_mps = [0.5, 0.1]
+swing_time_s = { min = 0.10, max = 0.25, steps = 4 }
+step_height_m = 0.1
+body_height_m = [0.31]
+ellipse_rx_m = { min = 0.01, max = 0.15, steps = 3 }
+ellipse_ry_m = [0.05]
+duration_s = 3
+seeds = [1, 0]
+"#;
+
+    fn parse(text: &str) -> Result<SweepConfig, StudyError> {
+        SweepConfig::parse(text, Path::new("test.toml"))
+    }
+
+    fn error_of(text: &str) -> String {
+        parse(text).unwrap_err().to_string()
+    }
+
+    #[test]
+    fn axes_are_expanded_quantised_and_sorted() {
+        let c = parse(GOOD).unwrap();
+        let g = &c.grid;
+        assert_eq!(g.gaits, vec![Gait::Trot, Gait::Walk]);
+        assert_eq!(g.speed_mps, vec![0.1, 0.5]);
+        assert_eq!(g.swing_time_s, vec![0.1, 0.15, 0.2, 0.25]);
+        assert_eq!(g.step_height_m, vec![0.1]);
+        assert_eq!(g.ellipse_rx_m, vec![0.01, 0.08, 0.15]);
+        assert_eq!(g.duration_s, 3.0);
+        assert_eq!(g.seeds, vec![0, 1]);
+        assert_eq!(g.point_count(), 2 * 2 * 4 * 3);
+        assert_eq!(g.run_count(), 2 * 2 * 4 * 3 * 2);
+        assert_eq!(c.selection, SelectionConfig::default());
+    }
+
+    #[test]
+    fn canonical_text_round_trips() {
+        let c = parse(GOOD).unwrap();
+        let back = parse(&c.to_toml()).unwrap();
+        assert_eq!(back, c);
+        assert!(c
+            .to_toml()
+            .contains("swing_time_s = [0.1, 0.15, 0.2, 0.25]"));
+    }
+
+    #[test]
+    fn bad_values_are_rejected_with_the_key_and_range() {
+        let cases: [(&str, &str, &[&str]); 12] = [
+            (
+                "swing_time_s = { min = 0.10, max = 0.25, steps = 4 }",
+                "swing_time_s = [0.1, 0.3]",
+                &["grid.swing_time_s[1]", "0.3", "[0.1, 0.25]"],
+            ),
+            (
+                "speed_mps = [0.5, 0.1]",
+                "speed_mps = [0.01]",
+                &["grid.speed_mps[0]", "[0.05, 1]", "m/s"],
+            ),
+            (
+                "step_height_m = 0.1",
+                "step_height_m = []",
+                &["grid.step_height_m", "empty list"],
+            ),
+            (
+                "ellipse_rx_m = { min = 0.01, max = 0.15, steps = 3 }",
+                "ellipse_rx_m = { min = 0.10, max = 0.05, steps = 3 }",
+                &["grid.ellipse_rx_m", "min 0.1 is greater than max 0.05"],
+            ),
+            (
+                "ellipse_rx_m = { min = 0.01, max = 0.15, steps = 3 }",
+                "ellipse_rx_m = { min = 0.01, max = 0.15, steps = 0 }",
+                &["grid.ellipse_rx_m.steps", "allowed 1 or more"],
+            ),
+            (
+                "ellipse_rx_m = { min = 0.01, max = 0.15, steps = 3 }",
+                "ellipse_rx_m = { min = 0.01, max = 0.2, steps = 3 }",
+                &["grid.ellipse_rx_m.max", "[0.01, 0.15]"],
+            ),
+            (
+                "body_height_m = [0.31]",
+                "body_height_m = [0.35]",
+                &["grid.body_height_m[0]", "[0.28, 0.311]"],
+            ),
+            (
+                "gaits = [\"walk\", \"trot\"]",
+                "gaits = [\"gallop\"]",
+                &["grid.gaits[0]", "gallop", "trot, walk, free"],
+            ),
+            (
+                "gaits = [\"walk\", \"trot\"]",
+                "gaits = []",
+                &["grid.gaits", "empty list"],
+            ),
+            (
+                "duration_s = 3",
+                "duration_s = 0.1",
+                &["grid.duration_s", "[1, 3600]"],
+            ),
+            ("seeds = [1, 0]", "seeds = [-1]", &["grid.seeds[0]", "-1"]),
+            (
+                "ellipse_ry_m = [0.05]",
+                "ellipse_ry_m = [0.05, 0.0500000001]",
+                &["grid.ellipse_ry_m", "twice"],
+            ),
+        ];
+        for (from, to, needles) in cases {
+            assert!(GOOD.contains(from), "{from}");
+            let msg = error_of(&GOOD.replace(from, to));
+            assert!(msg.starts_with("test.toml: "), "{msg}");
+            for n in needles {
+                assert!(msg.contains(n), "'{n}' not in: {msg}");
+            }
+        }
+    }
+
+    #[test]
+    fn shape_errors_name_the_key() {
+        let msg = error_of(&GOOD.replace("seeds = [1, 0]", "seeds = [0]\nspeed = 1"));
+        assert!(msg.contains("speed"), "{msg}");
+        let msg = error_of(&GOOD.replace("seeds = [1, 0]\n", ""));
+        assert!(msg.contains("seeds"), "{msg}");
+        let msg = error_of(&GOOD.replace("steps = 4", "steps = 4, step = 1"));
+        assert!(
+            msg.contains("step") && msg.contains("swing_time_s"),
+            "{msg}"
+        );
+        let msg = error_of(&GOOD.replace("steps = 4", "steps = 2.5"));
+        assert!(msg.contains("swing_time_s"), "{msg}");
+        let msg = error_of(&format!(
+            "{GOOD}\n[selection]\nmanipulability_weight = -1\n"
+        ));
+        assert!(msg.contains("selection.manipulability_weight"), "{msg}");
+        let msg = error_of(&format!("{GOOD}\n[selection]\nmax_vel_rmse_mps = 0\n"));
+        assert!(msg.contains("selection.max_vel_rmse_mps"), "{msg}");
+        let msg = error_of(&format!("{GOOD}\n[selection]\ninterpolation = \"cubic\"\n"));
+        assert!(msg.contains("interpolation"), "{msg}");
+        let msg = error_of(&GOOD.replace("steps = 4", "steps = 100000"));
+        assert!(
+            msg.contains("grid") && msg.contains("more than the"),
+            "{msg}"
+        );
+    }
+
+    #[test]
+    fn selection_overrides_are_read() {
+        let c = parse(&format!(
+            "{GOOD}\n[selection]\nmax_vel_rmse_mps = inf\nmanipulability_weight = 0\ninterpolation = \"linear\"\n"
+        ))
+        .unwrap();
+        assert_eq!(c.selection.max_vel_rmse_mps, f64::INFINITY);
+        assert_eq!(c.selection.manipulability_weight, 0.0);
+        assert_eq!(c.selection.interpolation, Interpolation::Linear);
+        assert_eq!(parse(&c.to_toml()).unwrap(), c);
+    }
+
+    #[test]
+    fn grid_differences_are_listed() {
+        let a = parse(GOOD).unwrap().grid;
+        let mut b = a.clone();
+        b.speed_mps.push(1.0);
+        b.seeds = vec![0];
+        let d = a.differences(&b);
+        assert_eq!(d.len(), 2, "{d:?}");
+        assert!(d[0].starts_with("speed_mps"));
+        assert!(a.differences(&a).is_empty());
+    }
+}
