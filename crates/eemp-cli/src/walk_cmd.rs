@@ -46,6 +46,9 @@ pub struct WalkArgs {
     /// (`false`: touchdown fixed at lift-off).
     #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
     pub retarget_swing: bool,
+    /// The body reference follows a change of the command at most this fast, m/s².
+    #[arg(long, default_value_t = PlannerConfig::default().max_accel_mps2)]
+    pub max_accel: f64,
     /// Floor friction coefficient (slippery ground below ~0.4); default: the robot file's.
     #[arg(long)]
     pub friction: Option<f64>,
@@ -88,7 +91,7 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
         gait,
         progress_factor: args.progress_factor,
         retarget_swing: args.retarget_swing,
-        ..Default::default()
+        max_accel_mps2: args.max_accel,
     };
     let command = VelocityCommand {
         vx_mps: args.speed,
@@ -239,6 +242,7 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
         "params_table": args.params_table.as_ref().map(|p| p.display().to_string()),
         "progress_factor": args.progress_factor,
         "retarget_swing": args.retarget_swing,
+        "max_accel_mps2": args.max_accel,
         "duration_s": st.sim_time_s,
         "metrics_window_s": [spec.metrics_start_s, st.sim_time_s],
         "fell": st.fell,
