@@ -46,6 +46,10 @@ pub struct WalkArgs {
     /// (`false`: touchdown fixed at lift-off).
     #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
     pub retarget_swing: bool,
+    /// Show the MPC the swings the planner will start within its horizon (`false`: only the
+    /// running ones, as in the paper).
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
+    pub preview_swings: bool,
     /// The body reference follows a change of the command at most this fast, m/s².
     #[arg(long, default_value_t = PlannerConfig::default().max_accel_mps2)]
     pub max_accel: f64,
@@ -92,6 +96,7 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
         progress_factor: args.progress_factor,
         retarget_swing: args.retarget_swing,
         max_accel_mps2: args.max_accel,
+        preview_swings: args.preview_swings,
     };
     let command = VelocityCommand {
         vx_mps: args.speed,
@@ -243,6 +248,7 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
         "progress_factor": args.progress_factor,
         "retarget_swing": args.retarget_swing,
         "max_accel_mps2": args.max_accel,
+        "preview_swings": args.preview_swings,
         "duration_s": st.sim_time_s,
         "metrics_window_s": [spec.metrics_start_s, st.sim_time_s],
         "fell": st.fell,

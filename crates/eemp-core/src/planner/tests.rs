@@ -187,3 +187,59 @@ fn retargeting_moves_the_touchdown_with_the_measured_velocity() {
     let end = swing.trajectory.sample(swing.trajectory.duration_s).p_body;
     assert!((end.x - expected_x).abs() < 1e-9 && (end.y - expected_y).abs() < 1e-9);
 }
+
+#[test]
+fn preview_shows_the_mpc_a_swing_that_starts_later_in_the_horizon() {
+    let robot = RobotConfig::a1();
+    let kin = LegKinematics::new(&robot);
+    let make = |preview_swings| {
+        EemPlanner::new(
+            PlannerConfig {
+                gait: Gait::Trot,
+                preview_swings,
+                ..Default::default()
+            },
+            LegKinematics::new(&robot),
+            0.02,
+            10,
+            0.025,
+        )
+        .unwrap()
+    };
+    // Feet 6.2 cm behind their hips (inside r_x = 7 cm) and a command of 0.2 m/s: the feet
+    // leave their ellipses 0.04 s later, so at horizon step 2 (0.05 s; 25 ms steps), once the
+    // slew-limited reference has reached the command (the planner is first run long enough).
+    let (state, feet) = standing(&kin, 0.062);
+    let cmd = VelocityCommand {
+        vx_mps: 0.2,
+        ..Default::default()
+    };
+    let params = PlannerParams::default();
+    for preview in [false, true] {
+        let mut p = make(preview);
+        p.plan(0.0, &state, &feet, &cmd, &params);
+        let plan = p.plan(1.0, &state, &feet, &cmd, &params);
+        assert_eq!(plan.stance, LegMap::splat(true), "no foot is outside now");
+        let off: Vec<usize> = (0..10)
+            .filter(|k| plan.contacts_horizon[*k] != LegMap::splat(true))
+            .collect();
+        if !preview {
+            assert!(off.is_empty(), "{off:?}");
+            continue;
+        }
+        // 0.008 m to go at 0.2 m/s = 0.04 s: the first step after it is k = 2 (0.05 s); the
+        // pair then stays up for ΔT = 0.25 s = 10 steps, to the end of the horizon.
+        assert_eq!(off, (2..10).collect::<Vec<_>>());
+        let lifted: Vec<Leg> = Leg::ALL
+            .into_iter()
+            .filter(|l| !plan.contacts_horizon[2][*l])
+            .collect();
+        assert_eq!(lifted.len(), 2);
+        assert_eq!(lifted[0].diagonal(), lifted[1], "a trot pair");
+        // Its predicted touchdown: the hip 0.05 + 0.25 s on at 0.2 m/s, plus V·ΔT/2.
+        let leg = lifted[0];
+        let expected_x =
+            state.body.p_world.x + kin.nominal_foot_body(leg).x + 0.2 * 0.30 + 0.2 * 0.125;
+        assert!((plan.feet_horizon_world[2][leg].x - expected_x).abs() < 1e-9);
+    }
+}
