@@ -63,7 +63,7 @@ pub struct WalkArgs {
     #[arg(long, default_value_t = 0.3)]
     pub push_dv: f64,
     /// Time between MPC solves, s (a stance change also triggers a solve).
-    #[arg(long, default_value_t = 0.01)]
+    #[arg(long, default_value_t = eemp_core::controller::ControllerConfig::default().mpc_period_s)]
     pub mpc_period: f64,
     /// Rows per second in trace.csv (the simulation runs at 1000 Hz; writing every step costs
     /// about a quarter of the run time).
