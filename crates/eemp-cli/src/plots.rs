@@ -16,7 +16,9 @@ pub const WIDTH: u32 = 1200;
 const PANEL_H: u32 = 300;
 const TITLE_H: u32 = 50;
 const LEGEND_W: u32 = 210;
-const COLORBAR_W: u32 = 180;
+const COLORBAR_W: u32 = 150;
+/// Height of the strip under a heat-map grid that explains the grey cells.
+const GREY_NOTE_H: u32 = 34;
 const FONT: &str = "sans-serif";
 const NAN_GREY: RGBColor = RGBColor(176, 176, 176);
 const STANCE: RGBColor = RGBColor(31, 119, 180);
@@ -134,14 +136,22 @@ pub fn heatmap(
     let zr = padded_range(z.iter().flatten().copied(), 0.0);
     render(path, (WIDTH, 800), |root| {
         let body = root.titled(title, title_style())?;
-        let (map, bar) = body.split_horizontally(WIDTH - COLORBAR_W);
+        let (map, side) = body.split_horizontally(WIDTH - COLORBAR_W);
+        let (bar, note) = side.split_vertically(side.dim_in_pixel().1 - 70);
         let labels = (x_label, y_label, 16);
         let grey = draw_map(&map, "", labels, x, y, z, zr)?;
-        draw_colorbar(&bar, z_label, zr, grey)
+        draw_colorbar(&bar, z_label, zr, 15)?;
+        if grey {
+            draw_legend(&note, &[grey_entry()], 10)?;
+        }
+        Ok(())
     })
 }
 
-/// Small heat maps in a grid `cols` wide, all on one colour scale with one colour bar.
+/// Small heat maps in a grid `cols` wide, filled row by row. Each row of the grid has its own
+/// colour scale, shown by its own colour bar on the right (for one speed per row, the panels
+/// of that speed are comparable with each other, and a row of low values is not flattened by
+/// the high values of another).
 pub fn heatmap_grid(
     path: &Path,
     title: &str,
@@ -154,21 +164,41 @@ pub fn heatmap_grid(
     let cols = cols.clamp(1, cells.len().max(1));
     let rows = cells.len().div_ceil(cols).max(1);
     let cell_h = ((WIDTH - COLORBAR_W) / cols as u32 * 4 / 5).clamp(260, 500);
-    let all_z = cells.iter().flat_map(|c| c.z.iter().flatten().copied());
-    let zr = padded_range(all_z, 0.0);
-    render(path, (WIDTH, TITLE_H + cell_h * rows as u32), |root| {
+    let height = TITLE_H + cell_h * rows as u32 + GREY_NOTE_H;
+    render(path, (WIDTH, height), |root| {
         let body = root.titled(title, title_style())?;
-        let (grid, bar) = body.split_horizontally(WIDTH - COLORBAR_W);
+        let (main, note) = body.split_vertically(cell_h * rows as u32);
+        let (grid, bars) = main.split_horizontally(WIDTH - COLORBAR_W);
         if cells.is_empty() {
             return no_data(&grid);
         }
+        let areas = grid.split_evenly((rows, cols));
         let mut grey = false;
-        for (cell, area) in cells.iter().zip(grid.split_evenly((rows, cols))) {
-            let (x, y, z) = (&cell.x, &cell.y, &cell.z);
-            grey |= draw_map(&area, &cell.title, (x_label, y_label, 13), x, y, z, zr)?;
+        for ((row, row_areas), bar) in cells
+            .chunks(cols)
+            .zip(areas.chunks(cols))
+            .zip(bars.split_evenly((rows, 1)))
+        {
+            let zr = padded_range(row.iter().flat_map(|c| c.z.iter().flatten().copied()), 0.0);
+            for (cell, area) in row.iter().zip(row_areas) {
+                let (x, y, z) = (&cell.x, &cell.y, &cell.z);
+                grey |= draw_map(area, &cell.title, (x_label, y_label, 13), x, y, z, zr)?;
+            }
+            // The bar spans the maps' plotting height: below the captions, above the x axes.
+            let (_, bar) = bar.split_vertically(13 + 2 + 8 + 10);
+            let (bar, _) = bar.split_vertically(bar.dim_in_pixel().1.saturating_sub(13 * 3));
+            draw_colorbar(&bar, z_label, zr, 13)?;
         }
-        draw_colorbar(&bar, z_label, zr, grey)
+        if grey {
+            let (_, right) = note.split_horizontally(WIDTH - COLORBAR_W - 60);
+            draw_legend(&right, &[grey_entry()], 4)?;
+        }
+        Ok(())
     })
+}
+
+fn grey_entry() -> (String, Swatch) {
+    ("fell / no data".into(), Swatch::Bar(NAN_GREY))
 }
 
 fn render(
@@ -313,23 +343,34 @@ fn draw_map(
     Ok(grey)
 }
 
-fn draw_colorbar(area: &Area, z_label: &str, zr: (f64, f64), grey: bool) -> DrawResult {
-    let (bar_area, nan_area) = area.split_vertically(area.dim_in_pixel().1 as i32 - 70);
-    let mut chart = ChartBuilder::on(&bar_area)
-        .margin_top(30)
-        .margin_bottom(10)
-        .margin_left(10)
-        .margin_right(30)
-        .right_y_label_area_size(80)
+/// A vertical colour bar filling `area`, its label written horizontally above it (a rotated
+/// label beside the ticks does not fit a narrow bar and was clipped at the image edge).
+fn draw_colorbar(area: &Area, z_label: &str, zr: (f64, f64), text: u32) -> DrawResult {
+    let label_h = text as i32 + 10;
+    let (w, _) = area.dim_in_pixel();
+    let style = TextStyle::from((FONT, text)).pos(Pos::new(HPos::Center, VPos::Top));
+    let bar_w = 26;
+    let left = 12;
+    // Centred over the bar and its ticks, kept inside the area.
+    let label_w = area.estimate_text_size(z_label, &style)?.0 as i32;
+    let cx = (left + bar_w / 2 + 10)
+        .max(label_w / 2 + 2)
+        .min(w as i32 - label_w / 2 - 2);
+    area.draw_text(z_label, &style, (cx, 0))?;
+    let tick_w = w.saturating_sub((left + bar_w) as u32 + 4).max(10);
+    let mut chart = ChartBuilder::on(area)
+        .margin_top(label_h)
+        .margin_bottom(text / 2 + 2)
+        .margin_left(left)
+        .right_y_label_area_size(tick_w)
         .build_cartesian_2d(0.0f64..1.0f64, zr.0..zr.1)?;
     chart
         .configure_mesh()
         .disable_mesh()
         .disable_x_axis()
-        .y_desc(z_label)
+        .y_labels(((area.dim_in_pixel().1 / 40) as usize).clamp(3, 10))
         .y_label_formatter(&tick_format(zr))
-        .label_style((FONT, 13))
-        .axis_desc_style((FONT, 15))
+        .label_style((FONT, text - 1))
         .draw()?;
     let steps = 200;
     let dz = (zr.1 - zr.0) / steps as f64;
@@ -338,10 +379,6 @@ fn draw_colorbar(area: &Area, z_label: &str, zr: (f64, f64), grey: bool) -> Draw
         let color = colormap((i as f64 + 0.5) / steps as f64);
         Rectangle::new([(0.0, z0), (1.0, z0 + dz)], color.filled())
     }))?;
-    if grey {
-        let entry = ("fell / no data".into(), Swatch::Bar(NAN_GREY));
-        draw_legend(&nan_area, &[entry], 10)?;
-    }
     Ok(())
 }
 
@@ -352,15 +389,17 @@ enum Swatch {
     Bar(RGBColor),
 }
 
-/// Legends live beside the chart so they never hide data.
+/// Legends live beside the chart so they never hide data. A label too wide for the area is
+/// wrapped at spaces onto further lines (at most [`LEGEND_LINES`]; only then is it cut).
 fn draw_legend(area: &Area, entries: &[(String, Swatch)], top: i32) -> DrawResult {
     let (w, h) = area.dim_in_pixel();
     let row = ((h as i32 - top - 10) / entries.len().max(1) as i32).clamp(8, 22);
     let size = (row - 6).clamp(9, 14);
     let style = TextStyle::from((FONT, size)).pos(Pos::new(HPos::Left, VPos::Center));
     let max_w = w.saturating_sub(56);
-    for (i, (label, swatch)) in entries.iter().enumerate() {
-        let y = top + row * i as i32 + row / 2;
+    let line_h = size + 3;
+    let mut y = top + row / 2;
+    for (label, swatch) in entries {
         let (a, b) = ((8, y), (38, y));
         match swatch {
             Swatch::Line(c) => area.draw(&PathElement::new([a, b], c.stroke_width(3)))?,
@@ -375,15 +414,61 @@ fn draw_legend(area: &Area, entries: &[(String, Swatch)], top: i32) -> DrawResul
                 area.draw(&Rectangle::new(corners, c.filled()))?;
             }
         }
-        let mut text = label.clone();
-        while text.chars().count() > 1 && area.estimate_text_size(&text, &style)?.0 > max_w {
-            text.pop();
-            text.pop();
-            text.push('…');
+        let fits = |t: &str| -> Result<bool, Box<dyn Error>> {
+            Ok(area.estimate_text_size(t, &style)?.0 <= max_w)
+        };
+        let lines = wrap_text(label, LEGEND_LINES, fits)?;
+        for (k, line) in lines.iter().enumerate() {
+            area.draw_text(line, &style, (46, y + k as i32 * line_h))?;
         }
-        area.draw_text(&text, &style, (46, y))?;
+        y += row + (lines.len() as i32 - 1) * line_h;
     }
     Ok(())
+}
+
+/// Most lines one legend label may take.
+const LEGEND_LINES: usize = 3;
+
+/// `text` in at most `max_lines` lines that each satisfy `fits`, broken at spaces; a word too
+/// long for a line, or text beyond the last line, is cut with "…".
+fn wrap_text(
+    text: &str,
+    max_lines: usize,
+    fits: impl Fn(&str) -> Result<bool, Box<dyn Error>>,
+) -> Result<Vec<String>, Box<dyn Error>> {
+    let cut = |t: &str| -> Result<String, Box<dyn Error>> {
+        let mut t = t.to_string();
+        while t.chars().count() > 1 && !fits(&t)? {
+            t.pop();
+            t.pop();
+            t.push('…');
+        }
+        Ok(t)
+    };
+    let mut lines: Vec<String> = Vec::new();
+    let mut words = text.split(' ').peekable();
+    while let Some(word) = words.next() {
+        let mut line = word.to_string();
+        while let Some(next) = words.peek() {
+            let longer = format!("{line} {next}");
+            if !fits(&longer)? {
+                break;
+            }
+            line = longer;
+            words.next();
+        }
+        if lines.len() + 1 == max_lines && words.peek().is_some() {
+            let rest: Vec<&str> = words.collect();
+            line = format!("{line} {}", rest.join(" "));
+            lines.push(cut(&line)?);
+            return Ok(lines);
+        }
+        lines.push(cut(&line)?);
+    }
+    if lines.is_empty() {
+        lines.push(String::new());
+    }
+    Ok(lines)
 }
 
 /// Tick labels with the decimals the tick spacing needs; plotters' own shows "-0.0".
@@ -489,7 +574,9 @@ fn cell_edges(v: &[f64]) -> Vec<(usize, f64, f64)> {
             let half = |o: Option<&(usize, f64)>| o.map(|p| (p.1 - c) / 2.0);
             let up = half(pts.get(k + 1));
             let down = half(k.checked_sub(1).and_then(|j| pts.get(j)));
-            let up = up.or(down.map(|d| -d)).unwrap_or(0.5);
+            // A lone value: a band ±10 % of it wide (±0.5 around 0).
+            let lone = if c != 0.0 { 0.1 * c.abs() } else { 0.5 };
+            let up = up.or(down.map(|d| -d)).unwrap_or(lone);
             let down = down.unwrap_or(-up);
             (pts[k].0, c + down, c + up)
         })
@@ -661,7 +748,7 @@ mod tests {
     }
 
     #[test]
-    fn heatmap_grid_shares_one_scale() {
+    fn heatmap_grid_has_a_colour_scale_per_row() {
         let out = Out::new("heatmap_grid");
         let cells: Vec<HeatmapCell> = (0..5)
             .map(|k| {
@@ -724,5 +811,24 @@ mod tests {
         assert_eq!(tick_format((0.0, 60.0))(&50.0), "50");
         let gap = series("s", |t| if (1.0..2.0).contains(&t) { f64::NAN } else { t });
         assert_eq!(segments(&gap).len(), 2);
+        let lone = cell_edges(&[0.07]);
+        assert!((lone[0].1 - 0.063).abs() < 1e-12 && (lone[0].2 - 0.077).abs() < 1e-12);
+    }
+
+    #[test]
+    fn legend_labels_wrap_at_spaces_and_are_cut_only_beyond_the_last_line() {
+        let fits = |t: &str| Ok::<bool, Box<dyn Error>>(t.chars().count() <= 10);
+        let wrap = |t: &str, n: usize| wrap_text(t, n, fits).unwrap();
+        assert_eq!(wrap("short", 3), ["short"]);
+        assert_eq!(
+            wrap("walk unstable from 0.5 m/s", 3),
+            ["walk", "unstable", "from 0.5 …"]
+        );
+        assert_eq!(
+            wrap("walk unstable from 0.5 m/s", 4),
+            ["walk", "unstable", "from 0.5", "m/s"]
+        );
+        assert_eq!(wrap("abcdefghijklmno", 2), ["abcdefghi…"]);
+        assert_eq!(wrap("", 2), [""]);
     }
 }

@@ -44,6 +44,11 @@ pub enum SweepAction {
     Report {
         /// Sweep folder.
         dir: PathBuf,
+        /// Also write the tables (a1_<gait>.toml) into this folder, e.g. the repository's
+        /// tables/ (a stale table of a gait of this sweep without a selectable point is
+        /// removed; other gaits' tables are left alone).
+        #[arg(long, value_name = "DIR")]
+        tables_out: Option<PathBuf>,
     },
 }
 
@@ -58,18 +63,19 @@ pub fn run(args: &SweepArgs) -> Result<(), String> {
                 );
             }
             println!(
-                "merged {} folder(s) into {}: {} runs, {} duplicate(s) kept once, {} run(s) of \
-                 the grid missing",
+                "merged {} folder(s) into {}: {} runs, {} duplicate(s) kept once, {} failed-run \
+                 row(s) replaced by another row of the run, {} run(s) of the grid missing",
                 s.inputs,
                 out.display(),
                 s.rows,
                 s.duplicates,
+                s.superseded_failures,
                 s.missing
             );
             Ok(())
         }
-        Some(SweepAction::Report { dir }) => {
-            let written = crate::sweep_report::write_report(dir)?;
+        Some(SweepAction::Report { dir, tables_out }) => {
+            let written = crate::sweep_report::write_report(dir, tables_out.as_deref())?;
             println!("wrote {}", written.join(", "));
             Ok(())
         }
@@ -101,6 +107,13 @@ fn sweep(args: &SweepArgs) -> Result<(), String> {
     if let Some((bytes, reason)) = &s.repaired {
         eprintln!(
             "note: cut {bytes} byte(s) from the end of {} ({reason}): that run is done again",
+            s.results.display()
+        );
+    }
+    if s.dropped_failed > 0 {
+        eprintln!(
+            "note: removed {} row(s) of failed runs from {}: those runs were tried again",
+            s.dropped_failed,
             s.results.display()
         );
     }
@@ -166,7 +179,21 @@ mod tests {
             other => panic!("{other:?}"),
         }
         let a = parse(&["report", "d"]).unwrap();
-        assert!(matches!(a.action, Some(SweepAction::Report { .. })));
+        assert!(matches!(
+            a.action,
+            Some(SweepAction::Report {
+                tables_out: None,
+                ..
+            })
+        ));
+        let a = parse(&["report", "d", "--tables-out", "tables"]).unwrap();
+        match a.action {
+            Some(SweepAction::Report { dir, tables_out }) => {
+                assert_eq!(dir, PathBuf::from("d"));
+                assert_eq!(tables_out, Some(PathBuf::from("tables")));
+            }
+            other => panic!("{other:?}"),
+        }
         assert!(parse(&["--config", "s.toml"]).is_err(), "--out is required");
         assert!(parse(&["merge", "--out", "m"]).is_err(), "no input folders");
     }

@@ -2,19 +2,22 @@
 //! `eemp-study` selects) and the report files.
 //!
 //! Writes `DIR/tables/a1_<gait>.toml`, `DIR/figures/*.png`, `DIR/report.md` (figures linked) and
-//! `DIR/report.html` (figures embedded).
+//! `DIR/report.html` (figures embedded); with `--tables-out DIR2`, the tables also to DIR2.
+//! The selection settings are the folder's `sweep.toml` `[selection]` (a key missing there takes
+//! its default).
 
 use crate::plots::{heatmap_grid, line_panels, HeatmapCell, Panel, Series};
 use eemp_core::planner::Gait;
-use eemp_study::report::{self, fig5_speeds, Figure, ReportInput};
-use eemp_study::select::{GaitStudy, Study};
+use eemp_study::report::{self, fig5_speeds, table_file_name, Figure, ReportInput, TABLES_DIR};
+use eemp_study::select::{cot_jump_pct_text, most_fell_pct_text, GaitStudy, Study};
 use eemp_study::store::{load_results, load_sessions, load_stored_config, RESULTS_FILE};
 use std::path::Path;
 
 pub const FIGURES_DIR: &str = "figures";
 
-/// Writes the report of the sweep folder `dir`; returns the written paths.
-pub fn write_report(dir: &Path) -> Result<Vec<String>, String> {
+/// Writes the report of the sweep folder `dir` (and, if `tables_out` is given, the tables to
+/// that folder too); returns the written paths.
+pub fn write_report(dir: &Path, tables_out: Option<&Path>) -> Result<Vec<String>, String> {
     let config = load_stored_config(dir)
         .map_err(|e| e.to_string())?
         .ok_or_else(|| format!("{}: no sweep.toml: not a sweep folder", dir.display()))?;
@@ -35,12 +38,30 @@ pub fn write_report(dir: &Path) -> Result<Vec<String>, String> {
     }
     let sessions = load_sessions(dir).map_err(|e| e.to_string())?;
     let study = Study::analyse(&loaded.rows, config.selection);
-    let tables = report::write_tables(dir, &study).map_err(|e| e.to_string())?;
-    let figures = draw_figures(dir, &config.grid.speed_mps, &study)?;
-    let mut written: Vec<String> = tables
+    let mut written: Vec<String> = Vec::new();
+    let mut write_tables = |to: &Path| {
+        let w =
+            report::write_tables(dir, to, &study, &config.grid.gaits).map_err(|e| e.to_string())?;
+        for path in &w.removed {
+            eprintln!(
+                "note: removed {}: its gait no longer has a selectable point",
+                path.display()
+            );
+        }
+        written.extend(w.written.iter().map(|t| t.1.display().to_string()));
+        Ok::<_, String>(w)
+    };
+    let own = write_tables(&dir.join(TABLES_DIR))?;
+    if let Some(to) = tables_out {
+        write_tables(to)?;
+    }
+    // Relative to the sweep folder, for the report's links.
+    let tables: Vec<_> = own
+        .written
         .iter()
-        .map(|t| dir.join(&t.1).display().to_string())
+        .map(|t| (t.0, Path::new(TABLES_DIR).join(table_file_name(t.0))))
         .collect();
+    let figures = draw_figures(dir, &config.grid.speed_mps, &study)?;
     written.extend(
         figures
             .iter()
@@ -117,10 +138,13 @@ fn draw_figures(dir: &Path, grid_speeds: &[f64], study: &Study) -> Result<Vec<Fi
         "fig5_cot_contours.png",
         title5,
         format!(
-            "CoT (dimensionless, one colour scale) per commanded speed (rows) for {} (columns), \
-             over r_x (y) and ΔT (x); each cell is the lowest seed-averaged CoT over h_step, X_z \
-             and r_y among points that stood in every seed; grey: every such point fell. The \
-             paper's 0.01 m/s is below Table I's 0.05 m/s: the nearest grid speed is shown.",
+            "CoT (dimensionless) per commanded speed (rows) for {} (columns), over r_x (y) and \
+             ΔT (x); each row (speed) has its own colour scale and colour bar, shared by its \
+             panels, so the structure at high speeds is not flattened by the higher CoT at low \
+             speeds (compare values across rows by the bars). Each cell is the lowest \
+             seed-averaged CoT over h_step, X_z and r_y among points that stood in every seed; \
+             grey: every such point fell (or none was run). The paper's 0.01 m/s is below \
+             Table I's 0.05 m/s: the nearest grid speed is shown.",
             gaits
                 .iter()
                 .map(Gait::to_string)
@@ -150,17 +174,18 @@ fn draw_figures(dir: &Path, grid_speeds: &[f64], study: &Study) -> Result<Vec<Fi
             .map(|s| s.best.as_ref().map_or(f64::NAN, f))
             .collect(),
     };
-    let markers: Vec<(f64, String)> = study
-        .gait(Gait::Walk)
-        .and_then(|w| w.instability)
-        .map(|i| {
-            (
-                i.speed_mps,
-                format!("walk unstable from {} m/s", i.speed_mps),
-            )
-        })
-        .into_iter()
-        .collect();
+    let unstable = |g: &GaitStudy| -> Vec<(f64, String)> {
+        g.instability
+            .map(|i| {
+                (
+                    i.speed_mps,
+                    format!("{} unstable from {}\u{a0}m/s", g.gait, i.speed_mps),
+                )
+            })
+            .into_iter()
+            .collect()
+    };
+    let markers: Vec<(f64, String)> = study.gait(Gait::Walk).map_or(vec![], unstable);
     let panel = |title: &str, y_label: &str, f: fn(&eemp_study::select::Scored) -> f64| Panel {
         title: title.into(),
         x_label: "commanded speed [m/s]".into(),
@@ -178,14 +203,30 @@ fn draw_figures(dir: &Path, grid_speeds: &[f64], study: &Study) -> Result<Vec<Fi
             s.manipulability()
         }),
     ];
-    let title6 = "Fig. 6 analogue: walk vs trot";
+    // The paper's figure compares walk and trot; a grid without both gets a plain title.
+    let has = |g: Gait| study.gait(g).is_some();
+    let title6 = if has(Gait::Walk) && has(Gait::Trot) {
+        "Fig. 6 analogue: walk vs trot".to_string()
+    } else {
+        let names: Vec<String> = gaits.iter().map(|g| g.to_string()).collect();
+        format!(
+            "Fig. 6 analogue: CoT and manipulability vs speed ({})",
+            names.join(", ")
+        )
+    };
+    let title6 = title6.as_str();
     add(
         "fig6_walk_vs_trot.png",
         title6,
-        "CoT (top) and manipulability (bottom) of the selected point per speed; gaps: no \
-         selectable point. Red dashed line: where walk becomes unstable (all points fell, none \
-         tracked the command, or the best CoT jumped by more than 50 %)."
-            .into(),
+        format!(
+            "CoT (top) and manipulability (bottom) of the selected point per speed; gaps: no \
+             selectable point. Red dashed line: where walk becomes unstable (no point selectable \
+             at that or any higher speed, the best CoT jumped by more than {} from the \
+             previous speed with a selectable point, or more than {} of the points fell there \
+             and at every higher speed).",
+            cot_jump_pct_text(),
+            most_fell_pct_text()
+        ),
         &|p| line_panels(p, title6, &panels6).map_err(|e| e.to_string()),
     )?;
 
@@ -227,7 +268,7 @@ fn draw_figures(dir: &Path, grid_speeds: &[f64], study: &Study) -> Result<Vec<Fi
                 x_label: "commanded speed [m/s]".into(),
                 y_label: "CoT [-]".into(),
                 series,
-                markers: vec![],
+                markers: unstable(g),
             }
         })
         .collect();
@@ -236,7 +277,8 @@ fn draw_figures(dir: &Path, grid_speeds: &[f64], study: &Study) -> Result<Vec<Fi
         "cot_table_vs_constant.png",
         title_c,
         "CoT of the per-speed lookup table and of the gait's best constant parameters (Table II \
-         analogue) at the speeds the table covers."
+         analogue). The constant is chosen, and the improvement averaged, over the table's \
+         speeds below the gait's instability (red dashed line, if any)."
             .into(),
         &|p| line_panels(p, title_c, &panels_c).map_err(|e| e.to_string()),
     )?;
@@ -263,7 +305,8 @@ mod tests {
             ),
             manipulability: Some(3.0 + p.params.body_height_m),
             vel_rmse_mps: Some(0.1),
-            distance_m: 1.0,
+            distance_m: p.speed_mps * 18.0,
+            metrics_window_s: 18.0,
             ..Default::default()
         }
     }
@@ -294,8 +337,27 @@ seeds = [0]
             progress: ProgressMode::Hidden,
         };
         run_sweep(&config, &dir, &options, fake).unwrap();
-        let written = write_report(&dir).unwrap();
-        assert_eq!(written.len(), 2 + 3 + 2, "{written:?}");
+        // A stale table of a gait of the grid, and another sweep's table, in the extra folder.
+        let extra = dir.join("shipped-tables");
+        std::fs::create_dir_all(&extra).unwrap();
+        std::fs::write(extra.join("a1_free.toml"), "# another sweep's\n").unwrap();
+        let written = write_report(&dir, Some(&extra)).unwrap();
+        assert_eq!(written.len(), 2 + 2 + 3 + 2, "{written:?}");
+        for g in ["trot", "walk"] {
+            assert_eq!(
+                std::fs::read_to_string(extra.join(format!("a1_{g}.toml"))).unwrap(),
+                std::fs::read_to_string(dir.join(format!("tables/a1_{g}.toml")))
+                    .unwrap()
+                    .replace(
+                        &dir.join("tables").display().to_string(),
+                        &extra.display().to_string()
+                    )
+            );
+        }
+        assert!(
+            extra.join("a1_free.toml").exists(),
+            "free is not in this grid"
+        );
         for g in ["trot", "walk"] {
             let t = ParamsTable::load(&dir.join(format!("tables/a1_{g}.toml"))).unwrap();
             assert!(t.entries.iter().all(|e| e.cot.is_some()));
@@ -313,7 +375,9 @@ seeds = [0]
             "13.3 %",
             "59 %",
             "walk becomes unstable",
-            "0.7 m/s (every grid point fell)",
+            "0.7 m/s (every grid point fell, at this and every higher speed)",
+            "points (fell / failed / off command / no metrics)",
+            "max_speed_error_ratio",
             "figures/fig5_cot_contours.png",
             "tables/a1_trot.toml",
         ] {
@@ -340,7 +404,7 @@ seeds = [0]
 
     #[test]
     fn report_of_a_folder_without_sweep_toml_is_an_error() {
-        let err = write_report(Path::new("/nonexistent/eemp-sweep")).unwrap_err();
+        let err = write_report(Path::new("/nonexistent/eemp-sweep"), None).unwrap_err();
         assert!(err.contains("not a sweep folder"), "{err}");
     }
 }

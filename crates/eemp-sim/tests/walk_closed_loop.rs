@@ -45,7 +45,10 @@ fn each_gait_walks_without_falling() {
         );
         assert_eq!(run.stats.mpc_failures, 0);
         let rmse = m.vel_rmse_mps.unwrap();
-        assert!(rmse < 0.15, "{gait}: velocity RMSE {rmse} m/s at {speed} m/s");
+        assert!(
+            rmse < 0.15,
+            "{gait}: velocity RMSE {rmse} m/s at {speed} m/s"
+        );
     }
 }
 
@@ -171,4 +174,24 @@ fn a_params_table_drives_the_planner() {
     );
     let default = walk(Gait::Trot, 0.3, 3.0, PlannerParams::default());
     assert_ne!(tabled.metrics, default.metrics);
+}
+
+#[test]
+fn the_shipped_lookup_tables_load_and_the_trot_table_walks() {
+    use eemp_core::planner::params_table::ParamsTable;
+    let tables = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tables");
+    for gait in [Gait::Trot, Gait::Walk, Gait::Free] {
+        let t = ParamsTable::load(&tables.join(format!("a1_{gait}.toml"))).unwrap();
+        assert_eq!(t.gait, gait);
+        // The sweep's speeds, so every speed of Table I has a nearby entry.
+        let speeds: Vec<f64> = t.entries.iter().map(|e| e.speed_mps).collect();
+        assert_eq!(speeds, [0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.7, 1.0], "{gait}");
+    }
+    let table = ParamsTable::load(&tables.join("a1_trot.toml")).unwrap();
+    let mut s = spec(Gait::Trot, 0.5, 6.0, PlannerParams::default());
+    s.params_table = Some(table);
+    let run = run_walk(&RobotConfig::a1(), &s, |_| {}).unwrap();
+    assert!(!run.stats.fell, "fell at {:?}", run.stats.fell_at_s);
+    let rmse = run.metrics.vel_rmse_mps.unwrap();
+    assert!(rmse < 0.1, "velocity RMSE {rmse} m/s at 0.5 m/s");
 }

@@ -15,6 +15,7 @@
 //!
 //! [selection]                                           # optional, these are the defaults
 //! max_vel_rmse_mps = 0.25
+//! max_speed_error_ratio = 0.5                           # |mean speed − command| ≤ 0.5 · command
 //! manipulability_weight = 0.01
 //! interpolation = "nearest"
 //! ```
@@ -36,6 +37,9 @@ pub fn quantize(v: f64) -> f64 {
 
 /// Most runs one grid may hold (a guard against a typo such as `steps = 1000`).
 pub const MAX_RUNS: usize = 1_000_000;
+
+/// Largest allowed `[selection] max_speed_error_ratio`.
+pub const MAX_SPEED_ERROR_RATIO: f64 = 10.0;
 
 /// Allowed simulated duration of one run, s.
 pub const DURATION_S: [f64; 2] = [1.0, 3600.0];
@@ -83,20 +87,42 @@ pub struct Grid {
 }
 
 impl Grid {
-    /// Number of grid points (runs without the seed axis).
-    pub fn point_count(&self) -> usize {
-        self.gaits.len()
-            * self.speed_mps.len()
-            * self.swing_time_s.len()
-            * self.step_height_m.len()
-            * self.body_height_m.len()
-            * self.ellipse_rx_m.len()
-            * self.ellipse_ry_m.len()
+    /// Lengths of the axes that make up a grid point, in file order.
+    fn point_axes(&self) -> [usize; 7] {
+        [
+            self.gaits.len(),
+            self.speed_mps.len(),
+            self.swing_time_s.len(),
+            self.step_height_m.len(),
+            self.body_height_m.len(),
+            self.ellipse_rx_m.len(),
+            self.ellipse_ry_m.len(),
+        ]
     }
 
-    /// Number of runs (grid points × seeds).
+    /// Number of grid points (runs without the seed axis); `None` if it does not fit a
+    /// `usize`.
+    pub fn checked_point_count(&self) -> Option<usize> {
+        self.point_axes()
+            .iter()
+            .try_fold(1usize, |n, &len| n.checked_mul(len))
+    }
+
+    /// Number of runs (grid points × seeds); `None` if it does not fit a `usize`.
+    pub fn checked_run_count(&self) -> Option<usize> {
+        self.checked_point_count()?.checked_mul(self.seeds.len())
+    }
+
+    /// Number of grid points, saturating at `usize::MAX` (a validated grid has at most
+    /// [`MAX_RUNS`] runs).
+    pub fn point_count(&self) -> usize {
+        self.checked_point_count().unwrap_or(usize::MAX)
+    }
+
+    /// Number of runs (grid points × seeds), saturating at `usize::MAX` (a validated grid has
+    /// at most [`MAX_RUNS`]).
     pub fn run_count(&self) -> usize {
-        self.point_count() * self.seeds.len()
+        self.checked_run_count().unwrap_or(usize::MAX)
     }
 
     /// A readable account of how `self` differs from `other` (empty when equal).
@@ -130,6 +156,11 @@ pub struct SelectionConfig {
     /// Grid points whose seed-averaged velocity RMSE exceeds this are excluded, m/s
     /// (a run that does not follow the command is not a valid way to move at that speed).
     pub max_vel_rmse_mps: f64,
+    /// Grid points whose seed-averaged mean speed (distance over the metrics window) differs
+    /// from the command by more than this fraction of the command are excluded. The RMSE
+    /// limit is absolute and so admits large relative errors at low speeds; CoT is per
+    /// distance, so a point that overshoots the command looks cheaper than it is.
+    pub max_speed_error_ratio: f64,
     /// Weight w of the robustness term in the score `cot − w · manipulability`; 0 = CoT only.
     pub manipulability_weight: f64,
     /// Lookup between the tabulated speeds in the written tables.
@@ -140,6 +171,7 @@ impl Default for SelectionConfig {
     fn default() -> Self {
         SelectionConfig {
             max_vel_rmse_mps: 0.25,
+            max_speed_error_ratio: 0.5,
             manipulability_weight: 0.01,
             interpolation: Interpolation::Nearest,
         }
@@ -199,12 +231,20 @@ impl SweepConfig {
             duration_s: v.duration(g.duration_s.0)?,
             seeds: v.seeds(&g.seeds)?,
         };
-        if grid.run_count() > MAX_RUNS {
+        if grid.checked_run_count().is_none_or(|n| n > MAX_RUNS) {
+            let mut axes: Vec<usize> = grid.point_axes().to_vec();
+            axes.push(grid.seeds.len());
+            let count = grid.checked_run_count().map_or_else(
+                || format!("{:.3e}", axes.iter().map(|&n| n as f64).product::<f64>()),
+                |n| n.to_string(),
+            );
+            let factors: Vec<String> = axes.iter().map(usize::to_string).collect();
             return Err(v.error(
                 "grid",
                 format!(
-                    "{} runs is more than the {MAX_RUNS} one sweep may hold; use fewer values",
-                    grid.run_count()
+                    "{} = {count} runs (gaits × speeds × ΔT × h_step × X_z × r_x × r_y × \
+                     seeds) is more than the {MAX_RUNS} one sweep may hold; use fewer values",
+                    factors.join(" × ")
                 ),
             ));
         }
@@ -382,6 +422,18 @@ impl Validator<'_> {
                 format!("{rmse} is out of range: allowed (0, inf] m/s (inf = no limit)"),
             ));
         }
+        let ratio = raw
+            .max_speed_error_ratio
+            .map_or(d.max_speed_error_ratio, |n| n.0);
+        if !(ratio.is_finite() && ratio > 0.0 && ratio <= MAX_SPEED_ERROR_RATIO) {
+            return Err(self.error(
+                "selection.max_speed_error_ratio",
+                format!(
+                    "{ratio} is out of range: allowed (0, {MAX_SPEED_ERROR_RATIO}] (a fraction of \
+                     the commanded speed; 0.5 = mean speed within ±50 % of the command)"
+                ),
+            ));
+        }
         let w = raw
             .manipulability_weight
             .map_or(d.manipulability_weight, |n| n.0);
@@ -393,6 +445,7 @@ impl Validator<'_> {
         }
         Ok(SelectionConfig {
             max_vel_rmse_mps: rmse,
+            max_speed_error_ratio: ratio,
             manipulability_weight: w,
             interpolation: raw.interpolation.unwrap_or(d.interpolation),
         })
@@ -425,6 +478,7 @@ struct RawGrid {
 #[serde(deny_unknown_fields)]
 struct RawSelection {
     max_vel_rmse_mps: Option<Number>,
+    max_speed_error_ratio: Option<Number>,
     manipulability_weight: Option<Number>,
     interpolation: Option<Interpolation>,
 }
@@ -641,6 +695,17 @@ seeds = [1, 0]
         assert!(msg.contains("selection.manipulability_weight"), "{msg}");
         let msg = error_of(&format!("{GOOD}\n[selection]\nmax_vel_rmse_mps = 0\n"));
         assert!(msg.contains("selection.max_vel_rmse_mps"), "{msg}");
+        for bad in ["0", "-0.1", "10.5", "nan", "inf"] {
+            let msg = error_of(&format!(
+                "{GOOD}\n[selection]\nmax_speed_error_ratio = {bad}\n"
+            ));
+            assert!(
+                msg.contains("selection.max_speed_error_ratio")
+                    && msg.contains("(0, 10]")
+                    && msg.to_lowercase().contains(bad),
+                "{msg}"
+            );
+        }
         let msg = error_of(&format!("{GOOD}\n[selection]\ninterpolation = \"cubic\"\n"));
         assert!(msg.contains("interpolation"), "{msg}");
         let msg = error_of(&GOOD.replace("steps = 4", "steps = 100000"));
@@ -659,7 +724,79 @@ seeds = [1, 0]
         assert_eq!(c.selection.max_vel_rmse_mps, f64::INFINITY);
         assert_eq!(c.selection.manipulability_weight, 0.0);
         assert_eq!(c.selection.interpolation, Interpolation::Linear);
+        assert_eq!(c.selection.max_speed_error_ratio, 0.5, "the default");
         assert_eq!(parse(&c.to_toml()).unwrap(), c);
+        let c = parse(&format!(
+            "{GOOD}\n[selection]\nmax_speed_error_ratio = 10\n"
+        ))
+        .unwrap();
+        assert_eq!(c.selection.max_speed_error_ratio, 10.0);
+        assert!(c.to_toml().contains("max_speed_error_ratio = 10.0"));
+    }
+
+    #[test]
+    fn a_stored_sweep_toml_without_the_speed_error_ratio_gets_the_default() {
+        // What `eemp sweep` stored before the key existed.
+        let old = format!(
+            "{GOOD}\n[selection]\nmax_vel_rmse_mps = 0.25\nmanipulability_weight = 0.01\n\
+             interpolation = \"nearest\"\n"
+        );
+        assert_eq!(parse(&old).unwrap().selection, SelectionConfig::default());
+    }
+
+    #[test]
+    fn a_huge_grid_is_rejected_without_overflow() {
+        // 3 × 95001 × 100001 × 50001 × 31001 × 140001 × 140001 × 2 runs: far beyond u64.
+        let huge = r#"
+[grid]
+gaits = ["trot", "walk", "free"]
+speed_mps = { min = 0.05, max = 1.0, steps = 95001 }
+swing_time_s = { min = 0.10, max = 0.25, steps = 100001 }
+step_height_m = { min = 0.05, max = 0.15, steps = 50001 }
+body_height_m = { min = 0.28, max = 0.311, steps = 31001 }
+ellipse_rx_m = { min = 0.01, max = 0.15, steps = 140001 }
+ellipse_ry_m = { min = 0.01, max = 0.15, steps = 140001 }
+duration_s = 3
+seeds = [0, 1]
+"#;
+        let msg = error_of(huge);
+        assert!(
+            msg.starts_with("test.toml: grid: ")
+                && msg.contains("3 × 95001 × 100001")
+                && msg.contains("e30 runs")
+                && msg.contains("more than the 1000000"),
+            "{msg}"
+        );
+        // Just over the limit without overflow: 1000 × 1001 runs.
+        let over = GOOD
+            .replace(
+                "swing_time_s = { min = 0.10, max = 0.25, steps = 4 }",
+                "swing_time_s = { min = 0.10, max = 0.25, steps = 1000 }",
+            )
+            .replace(
+                "ellipse_rx_m = { min = 0.01, max = 0.15, steps = 3 }",
+                "ellipse_rx_m = { min = 0.01, max = 0.15, steps = 1001 }",
+            )
+            .replace("gaits = [\"walk\", \"trot\"]", "gaits = [\"walk\"]")
+            .replace("speed_mps = [0.5, 0.1]", "speed_mps = [0.5]")
+            .replace("seeds = [1, 0]", "seeds = [0]");
+        let msg = error_of(&over);
+        assert!(
+            msg.contains("1 × 1 × 1000 × 1 × 1 × 1001 × 1 × 1 = 1001000 runs"),
+            "{msg}"
+        );
+        let g = Grid {
+            seeds: vec![0; 3],
+            ..parse(GOOD).unwrap().grid
+        };
+        assert_eq!(g.checked_run_count(), Some(2 * 2 * 4 * 3 * 3));
+        let mut big = g.clone();
+        big.speed_mps = vec![0.1; 1 << 20];
+        big.swing_time_s = vec![0.1; 1 << 20];
+        big.ellipse_rx_m = vec![0.1; 1 << 20];
+        big.ellipse_ry_m = vec![0.1; 1 << 20];
+        assert_eq!(big.checked_run_count(), None);
+        assert_eq!(big.run_count(), usize::MAX);
     }
 
     #[test]

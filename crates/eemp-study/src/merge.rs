@@ -4,8 +4,8 @@ use crate::config::SweepConfig;
 use crate::error::StudyError;
 use crate::grid::RunId;
 use crate::store::{
-    append_sessions, load_results, load_sessions, load_stored_config, write_atomic, FolderLock,
-    ResultRow, COLUMNS, RESULTS_FILE, SESSIONS_FILE, SWEEP_FILE,
+    append_sessions, load_results, load_sessions, load_stored_config, prefer_result, write_atomic,
+    FolderLock, ResultRow, COLUMNS, RESULTS_FILE, SESSIONS_FILE, SWEEP_FILE,
 };
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -17,6 +17,9 @@ pub struct MergeSummary {
     pub rows: usize,
     /// Runs found in more than one input with the same results (kept once).
     pub duplicates: usize,
+    /// Rows of failed runs left out because another row of the run (a result, or a later
+    /// failure) was found.
+    pub superseded_failures: usize,
     /// Runs of the grid that no input holds.
     pub missing: usize,
     /// Inputs whose partial last line was ignored (they are not changed).
@@ -25,7 +28,8 @@ pub struct MergeSummary {
 
 /// Merges the sweep folders `inputs` into `out`. Every input must hold the same grid (and so
 /// must `out`, if it already is a sweep folder: its rows are merged too). A run present in
-/// several folders must have the same results there (wall time aside) and is kept once.
+/// several folders must have the same results there (wall time aside) and is kept once; a
+/// failed run's row gives way to a result of that run.
 /// `out` gets `sweep.toml` (the first input's), `results.csv` in canonical run order and the
 /// sources' `sessions.csv` rows (each once). Inputs are only read.
 pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<MergeSummary, StudyError> {
@@ -88,6 +92,7 @@ pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<MergeSummary, StudyError>
             summary.partial_lines.push(path.clone());
         }
         summary.duplicates += loaded.duplicates;
+        summary.superseded_failures += loaded.superseded_failures;
         for row in loaded.rows {
             let Some(&index) = order.get(&row.run_id) else {
                 return Err(StudyError::Results {
@@ -97,6 +102,14 @@ pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<MergeSummary, StudyError>
             };
             match merged.get(&index) {
                 Some((kept, _)) if kept.same_result(&row) => summary.duplicates += 1,
+                // A failed run's row is no result: a result replaces it (e.g. a shard run again
+                // after a failure, merged into an earlier merge's folder).
+                Some((kept, _)) if kept.failed() || row.failed() => {
+                    summary.superseded_failures += 1;
+                    if prefer_result(kept, &row) {
+                        merged.insert(index, (row, dir.as_path()));
+                    }
+                }
                 Some((kept, from)) => {
                     return Err(StudyError::Merge {
                         message: format!(

@@ -2,9 +2,11 @@
 //! the grid summary, tables, best constants, improvements and the comparison with the paper.
 //! Figures are drawn by the caller (`eemp-cli`) and passed in as PNG bytes.
 
-use crate::config::SweepConfig;
+use crate::config::{SweepConfig, GAIT_ORDER};
 use crate::error::StudyError;
-use crate::select::{Scored, Study, COT_JUMP};
+use crate::select::{
+    cot_jump_pct_text, cot_saving, most_fell_pct_text, Improvement, Scored, Study, COT_JUMP,
+};
 use crate::store::{ResultRow, SessionRow};
 use eemp_core::planner::params_table::Interpolation;
 use eemp_core::planner::{Gait, PlannerParams};
@@ -215,42 +217,76 @@ pub fn base64(bytes: &[u8]) -> String {
     out
 }
 
-/// Where [`write_tables`] puts the tables, relative to the sweep folder.
+/// Where the report puts the tables, relative to the sweep folder.
 pub const TABLES_DIR: &str = "tables";
 
-/// Writes `DIR/tables/a1_<gait>.toml` for every gait with a table; returns the paths relative to
-/// `dir`.
-pub fn write_tables(dir: &Path, study: &Study) -> Result<Vec<(Gait, PathBuf)>, StudyError> {
-    let tables_dir = dir.join(TABLES_DIR);
-    let mut written = Vec::new();
+/// The file name of a gait's table: `a1_<gait>.toml`.
+pub fn table_file_name(gait: Gait) -> String {
+    format!("a1_{gait}.toml")
+}
+
+/// What [`write_tables`] did.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct WrittenTables {
+    /// One table per gait with a selectable point: `tables_dir` joined with its file name.
+    pub written: Vec<(Gait, PathBuf)>,
+    /// Stale tables removed: gaits of the grid that no longer get a table.
+    pub removed: Vec<PathBuf>,
+}
+
+/// Writes `tables_dir/a1_<gait>.toml` for every gait of `study` with a table (each file
+/// through a temporary file and a rename), selected from the sweep folder `sweep_dir`. The
+/// table of a gait in `grid_gaits` that gets no table (no selectable point) is removed, so no
+/// stale table survives; other files, and tables of gaits this sweep did not run (another
+/// sweep's), are left alone.
+pub fn write_tables(
+    sweep_dir: &Path,
+    tables_dir: &Path,
+    study: &Study,
+    grid_gaits: &[Gait],
+) -> Result<WrittenTables, StudyError> {
+    let sel = &study.selection;
+    let mut out = WrittenTables::default();
     for g in &study.gaits {
-        let Some(table) = g.table(study.selection.interpolation) else {
+        let Some(table) = g.table(sel.interpolation) else {
             continue;
         };
         let table = table.map_err(|e| StudyError::Results {
-            path: dir.to_path_buf(),
+            path: sweep_dir.to_path_buf(),
             message: format!("the selected {} table is invalid: {e}", g.gait),
         })?;
-        std::fs::create_dir_all(&tables_dir).map_err(|e| StudyError::write(&tables_dir, e))?;
-        let rel = PathBuf::from(TABLES_DIR).join(format!("a1_{}.toml", g.gait));
+        std::fs::create_dir_all(tables_dir).map_err(|e| StudyError::write(tables_dir, e))?;
+        let path = tables_dir.join(table_file_name(g.gait));
         let text = format!(
             "# EEMP-Analytical lookup table for the {} gait, selected by `eemp sweep report` from\n\
              # {}: per speed the grid point with the lowest score cot - {} * manipulability among\n\
-             # points that stood in every seed and tracked the command within {} m/s.\n\
+             # points that stood in every seed, tracked the command within {} m/s (velocity RMSE)\n\
+             # and whose mean speed is off the command by at most {} x the command.\n\
              # Use: eemp walk --gait {} --params-table {}\n{}",
             g.gait,
-            dir.display(),
-            study.selection.manipulability_weight,
-            study.selection.max_vel_rmse_mps,
+            sweep_dir.display(),
+            sel.manipulability_weight,
+            sel.max_vel_rmse_mps,
+            sel.max_speed_error_ratio,
             g.gait,
-            dir.join(&rel).display(),
+            path.display(),
             table.to_toml()
         );
-        let path = dir.join(&rel);
-        std::fs::write(&path, text).map_err(|e| StudyError::write(&path, e))?;
-        written.push((g.gait, rel));
+        crate::store::write_atomic(&path, text.as_bytes())?;
+        out.written.push((g.gait, path));
     }
-    Ok(written)
+    for gait in GAIT_ORDER {
+        if !grid_gaits.contains(&gait) || out.written.iter().any(|w| w.0 == gait) {
+            continue;
+        }
+        let path = tables_dir.join(table_file_name(gait));
+        match std::fs::remove_file(&path) {
+            Ok(()) => out.removed.push(path),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+            Err(e) => return Err(StudyError::write(&path, e)),
+        }
+    }
+    Ok(out)
 }
 
 /// Everything the report is made of.
@@ -405,13 +441,21 @@ pub fn build(input: ReportInput) -> Document {
     b.push(Block::Heading(1, "Selection".into()));
     b.push(Block::Paragraph(format!(
         "Per grid point the metrics are averaged over its seeds. A point is excluded if it fell \
-         (or could not run) in any seed, or if its velocity RMSE exceeds {} m/s \
-         (`[selection] max_vel_rmse_mps`). Score = CoT − {} · manipulability \
+         or could not be run (simulator error) in any seed, if it lacks a finite CoT, \
+         manipulability, velocity RMSE or mean speed, if its velocity RMSE exceeds {} m/s \
+         (`[selection] max_vel_rmse_mps`), or if its mean speed (distance over the metrics \
+         window) differs from the commanded speed by more than {} × the commanded speed \
+         (`[selection] max_speed_error_ratio`; the RMSE limit alone is absolute and would admit \
+         points far off a low command). Score = CoT − {} · manipulability \
          (`[selection] manipulability_weight`): the paper's objective is the lowest CoT, with \
          the force-manipulability measure (eq. 9, higher = more robust) as the robustness term. \
          CoT is the dimensionless E/(m g ΔD) of eq. (8) over the metrics window. The lowest \
-         score per gait and speed is the lookup table; lookup between speeds: {}.",
+         score per gait and speed is the lookup table; lookup between speeds: {}. The last \
+         column counts the grid points at each speed and, in brackets, the excluded ones: fell \
+         (in some seed), failed (could not be run: no information about the gait), off command \
+         (velocity RMSE or mean speed beyond its limit), no metrics.",
         sel.max_vel_rmse_mps,
+        sel.max_speed_error_ratio,
         sel.manipulability_weight,
         match sel.interpolation {
             Interpolation::Nearest => "nearest tabulated speed (the paper's discrete look-up)",
@@ -443,13 +487,16 @@ pub fn build(input: ReportInput) -> Document {
             "vel. RMSE [m/s]",
             "mean speed [m/s]",
             "score",
-            "points (fell / off command)",
+            "points (fell / failed / off command / no metrics)",
         ];
         let rows = gs
             .speeds
             .iter()
             .map(|s| {
-                let counts = format!("{} ({} / {})", s.points, s.fell, s.off_command);
+                let counts = format!(
+                    "{} ({} / {} / {} / {})",
+                    s.points, s.fell, s.failed, s.off_command, s.no_metrics
+                );
                 match &s.best {
                     Some(best) => {
                         let p = &best.summary.point.params;
@@ -488,16 +535,14 @@ pub fn build(input: ReportInput) -> Document {
         1,
         "Best constant parameters (Table II analogue)".into(),
     ));
-    b.push(Block::Paragraph(
+    b.push(Block::Paragraph(format!(
         "Per gait: the parameter combination, ignoring speed, that is selectable (stood in every \
          seed, tracked the command) at every speed of the gait's stable range, with the lowest \
          mean score over those speeds. The stable range is the table's speeds below the speed \
-         where the gait becomes unstable (see the walk-instability rule below; all table speeds \
-         if there is none): a gait is not used where it is unstable, and a lone surviving point \
-         there would otherwise dictate the constant for the whole range. Improvement = mean \
-         over those speeds of (CoT_const − CoT_table) / CoT_const."
-            .into(),
-    ));
+         where the gait becomes unstable (see the instability rule below; all table speeds if \
+         there is none): a gait is not used where it is unstable, and a lone surviving point \
+         there would otherwise dictate the constant for the whole range. {IMPROVEMENT_DEFINITION}"
+    )));
     let const_rows = study
         .gaits
         .iter()
@@ -552,7 +597,7 @@ pub fn build(input: ReportInput) -> Document {
                     speed.to_string(),
                     num(t.cot(), 3),
                     num(k.cot(), 3),
-                    num(100.0 * (k.cot() - t.cot()) / k.cot(), 1) + " %",
+                    num(100.0 * cot_saving(k.cot(), t.cot()), 1) + " %",
                 ])
             })
             .collect();
@@ -581,19 +626,28 @@ pub fn build(input: ReportInput) -> Document {
             paper::LOW_SPEED_MAX_MPS
         ),
         format!(
-            "Walk instability: the lowest grid speed where (a) every walk point fell, or \
-             (b) no standing walk point tracked the command within {} m/s, or (c) the best \
-             walk CoT is more than {COT_JUMP}× the best CoT at the previous speed with a \
-             selected point (the paper's \"sharp increase in CoT\"). The red line in the \
-             walk-vs-trot figure marks it.",
-            sel.max_vel_rmse_mps
+            "Instability (walk, and every gait's stable range): the lower of (a) the lowest \
+             grid speed v such that no point is selectable at v or at any higher grid speed \
+             (speeds where every point failed to run are not counted as unstable; a speed \
+             without a selectable point below a selectable one is a gap, not the instability), \
+             (b) the lowest speed whose best CoT is more than {COT_JUMP}× (+{}) the best \
+             CoT at the previous speed with a selected point (the paper's \"sharp increase in \
+             CoT\"), and (c) the lowest speed v such that at v and at every higher grid speed \
+             more than {} of the grid points that ran fell (a lone survivor among falling \
+             neighbours is luck, not a working gait). The red line in the walk-vs-trot figure \
+             marks it.",
+            cot_jump_pct_text(),
+            most_fell_pct_text()
         ),
-        "Mean speed: the straight-line distance over the metrics window divided by its \
-         length. CoT is energy per distance, so a point that moves faster than commanded looks \
-         cheaper; the velocity-RMSE limit is absolute, so at the lowest speeds it admits points \
-         that overshoot the command by tens of percent. Compare the mean speed with the \
-         commanded speed in the tables."
-            .into(),
+        format!(
+            "Mean speed: the straight-line distance over the metrics window divided by its \
+             length. CoT is energy per distance, so a point that moves faster than commanded \
+             looks cheaper; the velocity-RMSE limit ({} m/s) is absolute, so at the lowest \
+             speeds it alone would admit points that overshoot the command by tens of percent, \
+             hence the relative limit (mean speed within {} × the command of it). Compare the \
+             mean speed with the commanded speed in the tables.",
+            sel.max_vel_rmse_mps, sel.max_speed_error_ratio
+        ),
         "Fig. 5 analogue: the paper's 0.01 m/s panel is outside Table I (speeds 0.05–1.00 m/s); \
          the nearest grid speed is shown instead."
             .into(),
@@ -612,6 +666,18 @@ pub fn build(input: ReportInput) -> Document {
     }
 }
 
+/// The one definition of the table's improvement, as the report states it.
+pub const IMPROVEMENT_DEFINITION: &str =
+    "Improvement of the per-speed table over fixed parameters (the best constant here, the \
+     paper's Table II in the comparison below: one definition for both) = mean of \
+     (CoT_fixed − CoT_table) / CoT_fixed over the table speeds of the gait's stable range where \
+     both the table and the fixed parameters are selectable.";
+
+/// "12.3 %, mean over 0.1, 0.3 m/s".
+fn improvement_text(i: &Improvement) -> String {
+    format!("{:.1} %, mean over {} m/s", i.pct, list(&i.speeds_mps))
+}
+
 fn axis_row(name: &str, values: &[f64]) -> Vec<String> {
     vec![name.into(), list(values), values.len().to_string()]
 }
@@ -623,8 +689,11 @@ fn speeds_of(points: &[Scored]) -> Vec<f64> {
 fn paper_table(study: &Study) -> Block {
     let improvement = |gait: Gait| {
         study.gait(gait).map_or("gait not in the grid".into(), |g| {
-            g.improvement_pct
-                .map_or("– (no best constant)".into(), |v| format!("{v:.1} %"))
+            let over = g
+                .constant
+                .as_ref()
+                .and_then(|c| g.improvement_over(|v| c.at(v)));
+            over.map_or("– (no best constant)".into(), |i| improvement_text(&i))
         })
     };
     let ratio = study
@@ -662,9 +731,11 @@ fn paper_table(study: &Study) -> Block {
             let text = match study.fixed_params(g.gait, &PlannerParams::default()) {
                 None => "not on the grid".to_string(),
                 Some(f) => format!(
-                    "{} (selectable at {} of {} table speeds)",
-                    f.improvement_pct(g)
-                        .map_or("–".into(), |v| format!("{v:.1} %")),
+                    "{} (Table II selectable at {} of {} table speeds)",
+                    f.improvement(g).map_or(
+                        "– (not selectable at any stable-range table speed)".into(),
+                        |i| improvement_text(&i)
+                    ),
                     f.selectable(),
                     f.per_speed.len()
                 ),
@@ -677,7 +748,8 @@ fn paper_table(study: &Study) -> Block {
         header: vec!["quantity".into(), "paper".into(), "this project".into()],
         rows: vec![
             vec![
-                "trot: CoT improvement, per-speed table over best constant".into(),
+                "trot: CoT improvement, per-speed table over best constant (definition above)"
+                    .into(),
                 format!(
                     "{} % (Sec. V; the conclusion says {} %)",
                     paper::TROT_IMPROVEMENT_PCT,
@@ -686,7 +758,8 @@ fn paper_table(study: &Study) -> Block {
                 improvement(Gait::Trot),
             ],
             vec![
-                "walk: CoT improvement, per-speed table over best constant".into(),
+                "walk: CoT improvement, per-speed table over best constant (definition above)"
+                    .into(),
                 format!("{} %", paper::WALK_IMPROVEMENT_PCT),
                 improvement(Gait::Walk),
             ],
@@ -710,7 +783,7 @@ fn paper_table(study: &Study) -> Block {
             ],
             vec![
                 "the paper's Table II parameters here: per-speed table's CoT improvement over \
-                 them"
+                 them (same definition as above)"
                     .into(),
                 "–".into(),
                 table_ii,
@@ -737,6 +810,57 @@ mod tests {
             assert_eq!(base64(input.as_bytes()), expected);
         }
         assert_eq!(base64(&[0xff, 0xfe, 0x00]), "//4A");
+    }
+
+    #[test]
+    fn write_tables_removes_a_stale_table_of_a_gait_of_the_grid_only() {
+        use crate::config::SelectionConfig;
+        use crate::grid::{GridPoint, RunSpec};
+        use crate::store::RunOutcome;
+        let row = |gait: Gait, fell: bool| {
+            let spec = RunSpec {
+                index: 0,
+                point: GridPoint {
+                    gait,
+                    speed_mps: 0.5,
+                    params: PlannerParams::default(),
+                    duration_s: 20.0,
+                },
+                seed: 0,
+            };
+            let outcome = RunOutcome {
+                fell,
+                cot: Some(0.3),
+                manipulability: Some(3.0),
+                vel_rmse_mps: Some(0.05),
+                distance_m: 9.0,
+                metrics_window_s: 18.0,
+                ..Default::default()
+            };
+            ResultRow::new(&spec, &outcome, 1.0)
+        };
+        // Trot gets a table; every walk point fell; free is not in this grid.
+        let study = Study::analyse(
+            &[row(Gait::Trot, false), row(Gait::Walk, true)],
+            SelectionConfig::default(),
+        );
+        let dir = std::env::temp_dir().join(format!("eemp-tables-{}", std::process::id()));
+        let tables = dir.join("shipped");
+        std::fs::create_dir_all(&tables).unwrap();
+        for f in ["a1_walk.toml", "a1_free.toml", "notes.txt"] {
+            std::fs::write(tables.join(f), "old\n").unwrap();
+        }
+        let w = write_tables(&dir, &tables, &study, &[Gait::Trot, Gait::Walk]).unwrap();
+        assert_eq!(w.written, vec![(Gait::Trot, tables.join("a1_trot.toml"))]);
+        assert_eq!(w.removed, vec![tables.join("a1_walk.toml")]);
+        assert!(!tables.join("a1_walk.toml").exists());
+        assert!(tables.join("a1_free.toml").exists() && tables.join("notes.txt").exists());
+        let text = std::fs::read_to_string(tables.join("a1_trot.toml")).unwrap();
+        assert!(text.contains("--params-table ") && text.contains("0.5 x the command"));
+        // Again: nothing more to remove.
+        let w = write_tables(&dir, &tables, &study, &[Gait::Trot, Gait::Walk]).unwrap();
+        assert!(w.removed.is_empty());
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

@@ -96,6 +96,9 @@ pub struct SweepSummary {
     pub total: usize,
     /// Runs found in `results.csv` at the start (not run again).
     pub already_done: usize,
+    /// Rows of failed runs found at the start and removed from `results.csv`: those runs were
+    /// tried again (they are among `ran`).
+    pub dropped_failed: usize,
     /// Runs done by this invocation.
     pub ran: usize,
     pub fell: usize,
@@ -123,7 +126,8 @@ pub fn default_threads() -> usize {
 
 /// Runs what is missing of `config`'s grid (or `options.shard` of it) into the folder `out`
 /// with `runner`, appending one row per run. Stops at the first write error; a panicking run is
-/// recorded as failed. Safe to kill at any moment and call again.
+/// recorded as failed (and tried again by the next call). Safe to kill at any moment and call
+/// again.
 pub fn run_sweep<R>(
     config: &SweepConfig,
     out: &Path,
@@ -215,6 +219,7 @@ where
         results: store.path().to_path_buf(),
         total: runs.len(),
         already_done: runs.len() - todo.len(),
+        dropped_failed: state.dropped_failed,
         ran: ran.into_inner(),
         fell: fell.into_inner(),
         failed: failed.into_inner(),

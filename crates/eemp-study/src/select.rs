@@ -1,9 +1,11 @@
 //! EEMP-Analytical's selection (paper Sec. V):
 //!
 //! 1. every grid point's metrics are averaged over its seeds;
-//! 2. a point is *selectable* unless a seed fell or failed, it has no CoT / manipulability, or
-//!    its mean velocity RMSE exceeds `max_vel_rmse_mps` (it did not move at the commanded
-//!    speed, so its CoT is not a CoT of that speed);
+//! 2. a point is *selectable* unless a seed fell or failed (could not be run), it has no
+//!    CoT / manipulability / mean speed, its mean velocity RMSE exceeds `max_vel_rmse_mps`, or
+//!    its mean speed (distance over the metrics window) is off the command by more than
+//!    `max_speed_error_ratio` × the command (it did not move at the commanded speed, so its
+//!    CoT is not a CoT of that speed);
 //! 3. score = `cot − manipulability_weight · manipulability` (lower is better): the paper's
 //!    objective is the lowest CoT, with the force-manipulability measure (eq. 9, higher = more
 //!    robust) as the robustness term; the default weight 0.01 makes a manipulability gain of 1
@@ -11,11 +13,14 @@
 //! 4. per gait and speed the lowest score wins → the lookup table;
 //! 5. per gait, the *best constant parameters* (Table II analogue) are the combination,
 //!    ignoring speed, that is selectable at every speed of the gait's *stable range* and has
-//!    the lowest mean score over those speeds; the table's improvement over it is the mean over
-//!    those speeds of (CoT_const − CoT_table) / CoT_const. The stable range is the table's
-//!    speeds below the gait's instability (see [`Instability`]; all of them if there is none):
-//!    a gait is not used where it is unstable, and a lone survivor there (a point that happens
-//!    not to fall at 0.7 m/s) would otherwise dictate the "constant" of the whole range.
+//!    the lowest mean score over those speeds. The stable range is the table's speeds below
+//!    the gait's instability (see [`Instability`]; all of them if there is none): a gait is not
+//!    used where it is unstable, and a lone survivor there (a point that happens not to fall at
+//!    0.7 m/s) would otherwise dictate the "constant" of the whole range;
+//! 6. the table's *improvement* over any fixed parameters (the best constant, the paper's
+//!    Table II) has one definition, [`GaitStudy::improvement_over`]: the mean of
+//!    [`cot_saving`] = (CoT_fixed − CoT_table) / CoT_fixed over the speeds of the stable range
+//!    where both the table and the fixed parameters have a selectable point.
 
 use crate::config::{gait_rank, SelectionConfig};
 use crate::grid::GridPoint;
@@ -77,6 +82,8 @@ pub enum Exclusion {
     NoMetrics,
     /// Mean velocity RMSE above the limit, m/s.
     OffCommand(f64),
+    /// Mean speed (m/s) off the command by more than `max_speed_error_ratio` × the command.
+    OffSpeed(f64),
 }
 
 impl PointSummary {
@@ -87,14 +94,23 @@ impl PointSummary {
         if self.fell {
             return Some(Exclusion::Fell);
         }
-        let (Some(cot), Some(m), Some(rmse)) = (self.cot, self.manipulability, self.vel_rmse_mps)
-        else {
+        let (Some(cot), Some(m), Some(rmse), Some(speed)) = (
+            self.cot,
+            self.manipulability,
+            self.vel_rmse_mps,
+            self.mean_speed_mps,
+        ) else {
             return Some(Exclusion::NoMetrics);
         };
-        if !(cot.is_finite() && m.is_finite() && rmse.is_finite()) {
+        if ![cot, m, rmse, speed].iter().all(|v| v.is_finite()) {
             return Some(Exclusion::NoMetrics);
         }
-        (rmse > sel.max_vel_rmse_mps).then_some(Exclusion::OffCommand(rmse))
+        if rmse > sel.max_vel_rmse_mps {
+            return Some(Exclusion::OffCommand(rmse));
+        }
+        let command = self.point.speed_mps;
+        ((speed - command).abs() > sel.max_speed_error_ratio * command)
+            .then_some(Exclusion::OffSpeed(speed))
     }
 
     /// `cot − w · manipulability` of a selectable point.
@@ -178,10 +194,15 @@ pub struct SpeedChoice {
     pub speed_mps: f64,
     /// Grid points with results at this speed.
     pub points: usize,
-    /// Points where some seed fell or failed.
+    /// Points where some seed fell (and none failed).
     pub fell: usize,
-    /// Standing points excluded for velocity RMSE or missing metrics.
+    /// Points where some seed could not be run (simulator error, panic): no information about
+    /// the gait, not a fall.
+    pub failed: usize,
+    /// Standing points off the command: velocity RMSE or mean-speed error above its limit.
     pub off_command: usize,
+    /// Standing points without a finite CoT, manipulability, velocity RMSE or mean speed.
+    pub no_metrics: usize,
     /// The lowest score (`None`: no selectable point).
     pub best: Option<Scored>,
 }
@@ -199,6 +220,30 @@ impl BestConstant {
     pub fn mean_cot(&self) -> f64 {
         self.per_speed.iter().map(Scored::cot).sum::<f64>() / self.per_speed.len() as f64
     }
+
+    /// The combination at `speed_mps`, if that speed is one of `per_speed`'s.
+    pub fn at(&self, speed_mps: f64) -> Option<&Scored> {
+        self.per_speed
+            .iter()
+            .find(|s| micro(s.summary.point.speed_mps) == micro(speed_mps))
+    }
+}
+
+/// Relative CoT saving of the per-speed table over fixed parameters at one speed:
+/// (CoT_fixed − CoT_table) / CoT_fixed (positive: the table is cheaper).
+pub fn cot_saving(fixed_cot: f64, table_cot: f64) -> f64 {
+    (fixed_cot - table_cot) / fixed_cot
+}
+
+/// The per-speed table's CoT improvement over fixed parameters
+/// ([`GaitStudy::improvement_over`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Improvement {
+    /// Mean of [`cot_saving`] over `speeds_mps`, %.
+    pub pct: f64,
+    /// The speeds averaged over: the stable range's table speeds where the fixed parameters
+    /// are selectable too, ascending.
+    pub speeds_mps: Vec<f64>,
 }
 
 /// Where a gait stops working as the speed rises.
@@ -208,35 +253,87 @@ pub struct Instability {
     pub reason: InstabilityReason,
 }
 
+/// Why a gait counts as unstable from a speed v on: the lower of
+///
+/// - the top of the speed range without a selectable point: v is the lowest tabulated speed
+///   such that no point is selectable at v or at any higher speed (speeds where every point
+///   failed to run are skipped at the bottom of that range: they say nothing about the gait).
+///   A speed without a selectable point *below* a selectable one is a gap, not the instability;
+/// - a CoT jump: the best CoT at v is more than [`COT_JUMP`] × the best CoT at the previous
+///   speed with a selectable point (the paper's "sharp increase in CoT");
+/// - most points fall: at v and at every higher speed more than [`MOST_FELL`] of the grid
+///   points that ran fell. A lone survivor among falling neighbours is luck, not a gait that
+///   works at that speed, and it would otherwise dictate the gait's best constant parameters.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum InstabilityReason {
-    /// Every point fell (or failed) in some seed.
+    /// No point is selectable from v up, and every point there that ran fell.
     AllFell,
-    /// Some points stood, but none followed the command within `max_vel_rmse_mps`.
-    NoneFollows,
+    /// No point is selectable from v up; counts of grid points over those speeds.
+    NoneSelectable {
+        points: usize,
+        fell: usize,
+        failed: usize,
+        off_command: usize,
+        no_metrics: usize,
+    },
     /// The best CoT is `ratio` × the best CoT at `from_speed_mps`, the previous speed with a
     /// selectable point (ratio > [`COT_JUMP`]).
     CotJump { from_speed_mps: f64, ratio: f64 },
+    /// At v, `fell` of the `ran` grid points that ran fell (more than [`MOST_FELL`] of them),
+    /// and so at every higher speed.
+    MostFell { fell: usize, ran: usize },
+}
+
+/// Share of a speed's grid points that must fall, there and at every higher speed, for the
+/// gait to count as unstable from that speed on.
+pub const MOST_FELL: f64 = 0.5;
+
+/// [`MOST_FELL`] in % ("50 %").
+pub fn most_fell_pct_text() -> String {
+    format!("{:.0} %", 100.0 * MOST_FELL)
 }
 
 /// A rise of the best CoT by more than this factor from one speed to the next marks the
 /// instability (the paper's "sharp increase in CoT").
 pub const COT_JUMP: f64 = 1.5;
 
+/// [`COT_JUMP`] as the rise it stands for, in % ("50 %").
+pub fn cot_jump_pct_text() -> String {
+    format!("{:.0} %", 100.0 * (COT_JUMP - 1.0))
+}
+
 impl std::fmt::Display for Instability {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let s = self.speed_mps;
         match self.reason {
-            InstabilityReason::AllFell => write!(f, "{s} m/s (every grid point fell)"),
-            InstabilityReason::NoneFollows => {
-                write!(f, "{s} m/s (no standing grid point follows the command)")
-            }
+            InstabilityReason::AllFell => write!(
+                f,
+                "{s} m/s (every grid point fell, at this and every higher speed)"
+            ),
+            InstabilityReason::NoneSelectable {
+                points,
+                fell,
+                failed,
+                off_command,
+                no_metrics,
+            } => write!(
+                f,
+                "{s} m/s (no grid point is selectable at this or any higher speed: of {points} \
+                 points {fell} fell, {off_command} were off the command, {no_metrics} had no \
+                 metrics, {failed} failed to run)"
+            ),
             InstabilityReason::CotJump {
                 from_speed_mps,
                 ratio,
             } => write!(
                 f,
                 "{s} m/s (best CoT jumps to {ratio:.2}× its value at {from_speed_mps} m/s)"
+            ),
+            InstabilityReason::MostFell { fell, ran } => write!(
+                f,
+                "{s} m/s ({fell} of the {ran} grid points that ran fell, more than {}, here and \
+                 at every higher speed)",
+                most_fell_pct_text()
             ),
         }
     }
@@ -250,7 +347,7 @@ pub struct GaitStudy {
     pub speeds: Vec<SpeedChoice>,
     /// Over the stable range: the table's speeds below `instability` (module docs, step 5).
     pub constant: Option<BestConstant>,
-    /// Mean over the stable range of (CoT_const − CoT_table)/CoT_const, %.
+    /// The table's improvement over `constant`, % ([`GaitStudy::improvement_over`]).
     pub improvement_pct: Option<f64>,
     /// The lowest speed where the gait fails (see [`InstabilityReason`]); `None` if it works
     /// at every speed.
@@ -268,6 +365,34 @@ impl GaitStudy {
             .iter()
             .find(|s| micro(s.speed_mps) == micro(speed_mps))
             .and_then(|s| s.best.as_ref())
+    }
+
+    /// Whether `speed_mps` is in the stable range: below the instability, if there is one.
+    pub fn is_stable(&self, speed_mps: f64) -> bool {
+        self.instability
+            .is_none_or(|i| micro(speed_mps) < micro(i.speed_mps))
+    }
+
+    /// The table's CoT improvement over fixed parameters whose selectable point at a speed is
+    /// `fixed(speed)` — the one definition the report uses: the mean of [`cot_saving`] over
+    /// the speeds of the stable range where both the table and the fixed parameters have a
+    /// selectable point. `None` if there is no such speed.
+    pub fn improvement_over<'a>(
+        &self,
+        fixed: impl Fn(f64) -> Option<&'a Scored>,
+    ) -> Option<Improvement> {
+        let (speeds_mps, savings): (Vec<f64>, Vec<f64>) = self
+            .best()
+            .filter(|t| self.is_stable(t.summary.point.speed_mps))
+            .filter_map(|t| {
+                let speed = t.summary.point.speed_mps;
+                Some((speed, cot_saving(fixed(speed)?.cot(), t.cot())))
+            })
+            .unzip();
+        (!savings.is_empty()).then(|| Improvement {
+            pct: 100.0 * savings.iter().sum::<f64>() / savings.len() as f64,
+            speeds_mps,
+        })
     }
 
     /// The lookup table (`None` if no speed has a selectable point), with each entry's CoT and
@@ -430,18 +555,18 @@ impl FixedParams {
         self.per_speed.iter().filter(|p| p.1.is_some()).count()
     }
 
-    /// Mean over the speeds where they are selectable of (CoT_fixed − CoT_table)/CoT_fixed, %,
-    /// given the gait's table.
-    pub fn improvement_pct(&self, gait: &GaitStudy) -> Option<f64> {
-        let terms: Vec<f64> = self
-            .per_speed
+    /// The selectable point at `speed_mps`, if any.
+    pub fn at(&self, speed_mps: f64) -> Option<&Scored> {
+        self.per_speed
             .iter()
-            .filter_map(|(speed, fixed)| {
-                let (f, t) = (fixed.as_ref()?, gait.best_at(*speed)?);
-                Some((f.cot() - t.cot()) / f.cot())
-            })
-            .collect();
-        (!terms.is_empty()).then(|| 100.0 * terms.iter().sum::<f64>() / terms.len() as f64)
+            .find(|p| micro(p.0) == micro(speed_mps))
+            .and_then(|p| p.1.as_ref())
+    }
+
+    /// The gait's table's improvement over these parameters
+    /// ([`GaitStudy::improvement_over`]).
+    pub fn improvement(&self, gait: &GaitStudy) -> Option<Improvement> {
+        gait.improvement_over(|v| self.at(v))
     }
 }
 
@@ -479,13 +604,19 @@ fn study_gait(gait: Gait, points: &[&PointSummary], sel: &SelectionConfig) -> Ga
                 speed_mps: pts[0].point.speed_mps,
                 points: pts.len(),
                 fell: 0,
+                failed: 0,
                 off_command: 0,
+                no_metrics: 0,
                 best: None,
             };
             for p in pts {
                 match p.exclusion(sel) {
-                    Some(Exclusion::Fell | Exclusion::Failed) => choice.fell += 1,
-                    Some(_) => choice.off_command += 1,
+                    Some(Exclusion::Fell) => choice.fell += 1,
+                    Some(Exclusion::Failed) => choice.failed += 1,
+                    Some(Exclusion::OffCommand(_) | Exclusion::OffSpeed(_)) => {
+                        choice.off_command += 1
+                    }
+                    Some(Exclusion::NoMetrics) => choice.no_metrics += 1,
                     None => {
                         let score = p.score(sel).expect("selectable");
                         // Strictly lower wins: ties keep the first in canonical order.
@@ -502,27 +633,25 @@ fn study_gait(gait: Gait, points: &[&PointSummary], sel: &SelectionConfig) -> Ga
         })
         .collect();
     let instability = instability(&speeds);
-    let stable: Vec<&SpeedChoice> = speeds
-        .iter()
-        .filter(|s| instability.is_none_or(|i| s.speed_mps < i.speed_mps))
-        .collect();
-    let constant = best_constant(points, &stable, sel);
-    let improvement_pct = constant.as_ref().map(|c| {
-        let terms: Vec<f64> = c
-            .per_speed
-            .iter()
-            .zip(stable.iter().filter_map(|s| s.best.as_ref()))
-            .map(|(k, t)| (k.cot() - t.cot()) / k.cot())
-            .collect();
-        100.0 * terms.iter().sum::<f64>() / terms.len() as f64
-    });
-    GaitStudy {
+    let mut study = GaitStudy {
         gait,
         speeds,
-        constant,
-        improvement_pct,
+        constant: None,
+        improvement_pct: None,
         instability,
-    }
+    };
+    let stable: Vec<&SpeedChoice> = study
+        .speeds
+        .iter()
+        .filter(|s| study.is_stable(s.speed_mps))
+        .collect();
+    let constant = best_constant(points, &stable, sel);
+    study.improvement_pct = constant
+        .as_ref()
+        .and_then(|c| study.improvement_over(|v| c.at(v)))
+        .map(|i| i.pct);
+    study.constant = constant;
+    study
 }
 
 fn best_constant(
@@ -573,32 +702,75 @@ fn best_constant(
     best
 }
 
+/// See [`InstabilityReason`].
 fn instability(speeds: &[SpeedChoice]) -> Option<Instability> {
-    let mut previous: Option<(f64, f64)> = None;
-    for s in speeds {
-        let reason = match &s.best {
-            None if s.fell == s.points => Some(InstabilityReason::AllFell),
-            None => Some(InstabilityReason::NoneFollows),
-            Some(b) => {
-                let jump =
-                    previous
-                        .filter(|&(_, cot)| b.cot() > COT_JUMP * cot)
-                        .map(|(from, cot)| InstabilityReason::CotJump {
-                            from_speed_mps: from,
-                            ratio: b.cot() / cot,
-                        });
-                previous = Some((s.speed_mps, b.cot()));
-                jump
+    // The first CoT jump between consecutive speeds with a selectable point.
+    let selectable: Vec<(f64, f64)> = speeds
+        .iter()
+        .filter_map(|s| Some((s.speed_mps, s.best.as_ref()?.cot())))
+        .collect();
+    let jump = selectable
+        .windows(2)
+        .find(|w| w[1].1 > COT_JUMP * w[0].1)
+        .map(|w| Instability {
+            speed_mps: w[1].0,
+            reason: InstabilityReason::CotJump {
+                from_speed_mps: w[0].0,
+                ratio: w[1].1 / w[0].1,
+            },
+        });
+    // The top of the speed range without a selectable point, less the speeds at its bottom
+    // where nothing could be run.
+    let top = speeds
+        .iter()
+        .rposition(|s| s.best.is_some())
+        .map_or(0, |i| i + 1);
+    let top = &speeds[top..];
+    let none_selectable = top.iter().position(|s| s.failed < s.points).map(|k| {
+        let range = &top[k..];
+        let sum = |f: fn(&SpeedChoice) -> usize| range.iter().map(f).sum::<usize>();
+        let (points, fell, failed) = (sum(|s| s.points), sum(|s| s.fell), sum(|s| s.failed));
+        let reason = if fell == points {
+            InstabilityReason::AllFell
+        } else {
+            InstabilityReason::NoneSelectable {
+                points,
+                fell,
+                failed,
+                off_command: sum(|s| s.off_command),
+                no_metrics: sum(|s| s.no_metrics),
             }
         };
-        if let Some(reason) = reason {
-            return Some(Instability {
-                speed_mps: s.speed_mps,
-                reason,
-            });
+        Instability {
+            speed_mps: range[0].speed_mps,
+            reason,
         }
-    }
-    None
+    });
+    // The lowest speed of the top range where most points fall (speeds where nothing ran are
+    // skipped, as above).
+    let most_fell = |s: &SpeedChoice| {
+        let ran = s.points - s.failed;
+        ran > 0 && s.fell as f64 > MOST_FELL * ran as f64
+    };
+    let start = speeds
+        .iter()
+        .rposition(|s| !(most_fell(s) || s.failed == s.points))
+        .map_or(0, |i| i + 1);
+    let most = speeds[start..]
+        .iter()
+        .find(|s| most_fell(s))
+        .map(|s| Instability {
+            speed_mps: s.speed_mps,
+            reason: InstabilityReason::MostFell {
+                fell: s.fell,
+                ran: s.points - s.failed,
+            },
+        });
+    // Ties keep the first: "every point fell" says more than "most fell".
+    [jump, none_selectable, most]
+        .into_iter()
+        .flatten()
+        .min_by(|a, b| a.speed_mps.total_cmp(&b.speed_mps))
 }
 
 #[cfg(test)]
@@ -638,18 +810,29 @@ mod tests {
             },
             seed,
         };
+        // On the command: 18 s of metrics at the commanded speed.
         let outcome = RunOutcome {
             fell: cot.is_none(),
             cot: Some(cot.unwrap_or(0.1)),
             manipulability: Some(manipulability),
             vel_rmse_mps: Some(rmse),
+            distance_m: speed * 18.0,
+            metrics_window_s: 18.0,
             ..Default::default()
         };
         ResultRow::new(&spec, &outcome, 1.0)
     }
 
+    /// A run that could not be done.
+    fn failed(gait: Gait, speed: f64, p: PlannerParams) -> ResultRow {
+        let mut r = row(gait, speed, p, 0, Some(0.5));
+        r.error = "simulator error".into();
+        r
+    }
+
     const SEL: SelectionConfig = SelectionConfig {
         max_vel_rmse_mps: 0.25,
+        max_speed_error_ratio: 0.5,
         manipulability_weight: 0.01,
         interpolation: Interpolation::Nearest,
     };
@@ -767,11 +950,11 @@ mod tests {
         // P3 fell at 0.5: selectable at 1 of 2 speeds, where it is the table's choice.
         let p3 = study.fixed_params(Gait::Trot, &params(0.15)).unwrap();
         assert_eq!((p3.selectable(), p3.per_speed.len()), (1, 2));
-        assert_eq!(p3.improvement_pct(t), Some(0.0));
+        assert_eq!(p3.improvement(t).unwrap().pct, 0.0);
         // P2: ((0.80 − 0.70)/0.80 + (0.65 − 0.40)/0.65)/2.
         let p2 = study.fixed_params(Gait::Trot, &params(0.2)).unwrap();
         let expected = 100.0 * (0.1 / 0.8 + 0.25 / 0.65) / 2.0;
-        assert!((p2.improvement_pct(t).unwrap() - expected).abs() < 1e-9);
+        assert!((p2.improvement(t).unwrap().pct - expected).abs() < 1e-9);
         assert_eq!(
             study.fixed_params(Gait::Trot, &params(0.1)),
             None,
@@ -830,6 +1013,7 @@ mod tests {
             Study::analyse(&rows, SEL).gaits.remove(0).instability
         };
         // The CoT falls with speed, then jumps by more than 50 %.
+        assert_eq!(cot_jump_pct_text(), "50 %");
         let i = walk(&[
             (0.1, Some(0.9)),
             (0.3, Some(0.8)),
@@ -846,17 +1030,221 @@ mod tests {
         // +45 % is not a jump; then every point falls.
         let i = walk(&[(0.1, Some(0.8)), (0.3, Some(1.16)), (0.5, None)]).unwrap();
         assert_eq!((i.speed_mps, i.reason), (0.5, InstabilityReason::AllFell));
-        // Standing but off the command.
+        // Standing but off the command, at the top speed.
         let rows = vec![
             row(Gait::Walk, 0.1, p, 0, Some(0.8)),
             row_full(Gait::Walk, 0.5, p, 0, Some(0.8), 3.0, 0.4),
         ];
         let i = Study::analyse(&rows, SEL).gaits[0].instability.unwrap();
+        assert_eq!(i.speed_mps, 0.5);
+        assert!(
+            matches!(
+                i.reason,
+                InstabilityReason::NoneSelectable {
+                    points: 1,
+                    fell: 0,
+                    off_command: 1,
+                    ..
+                }
+            ),
+            "{i:?}"
+        );
+        assert!(i.to_string().contains("1 were off the command"), "{i}");
+        assert_eq!(walk(&[(0.1, Some(0.9)), (0.5, Some(0.5))]), None);
+    }
+
+    #[test]
+    fn most_points_falling_at_the_top_speeds_is_the_instability() {
+        // Per speed: how many of three points (ΔT 0.15, 0.2, 0.25) fall; the others stand
+        // with CoT 0.5 (no jump).
+        let walk = |falls: &[(f64, usize)]| {
+            let rows: Vec<ResultRow> = falls
+                .iter()
+                .flat_map(|&(v, n)| {
+                    [0.15, 0.2, 0.25]
+                        .into_iter()
+                        .enumerate()
+                        .map(move |(k, dt)| {
+                            row(Gait::Walk, v, params(dt), 0, (k >= n).then_some(0.5))
+                        })
+                })
+                .collect();
+            Study::analyse(&rows, SEL).gaits.remove(0)
+        };
+        // 2 of 3 fall at 0.7 and 1.0: unstable from 0.7 although a point survives there.
+        let w = walk(&[(0.3, 0), (0.5, 1), (0.7, 2), (1.0, 2)]);
+        let i = w.instability.unwrap();
         assert_eq!(
             (i.speed_mps, i.reason),
-            (0.5, InstabilityReason::NoneFollows)
+            (0.7, InstabilityReason::MostFell { fell: 2, ran: 3 })
         );
-        assert_eq!(walk(&[(0.1, Some(0.9)), (0.5, Some(0.5))]), None);
+        assert!(i.to_string().contains("2 of the 3 grid points"), "{i}");
+        assert!(w.is_stable(0.5) && !w.is_stable(0.7));
+        // The best constant is chosen over the stable range only: it stands at 0.3 and 0.5.
+        assert_eq!(w.constant.as_ref().unwrap().per_speed.len(), 2);
+        // A majority falling below a speed where most stand is not the instability.
+        assert_eq!(walk(&[(0.3, 0), (0.5, 2), (0.7, 1)]).instability, None);
+        // The top range starts where most fall; every point falling at the top alone is
+        // reported as such.
+        let i = walk(&[(0.3, 0), (0.5, 2), (0.7, 3)]).instability.unwrap();
+        assert_eq!(
+            (i.speed_mps, i.reason),
+            (0.5, InstabilityReason::MostFell { fell: 2, ran: 3 })
+        );
+        let i = walk(&[(0.3, 0), (0.5, 0), (0.7, 3)]).instability.unwrap();
+        assert_eq!((i.speed_mps, i.reason), (0.7, InstabilityReason::AllFell));
+    }
+
+    #[test]
+    fn a_gap_below_a_selectable_speed_is_not_the_instability() {
+        let p = params(0.25);
+        let walk = |cots: &[(f64, Option<f64>)]| {
+            let rows: Vec<ResultRow> = cots
+                .iter()
+                .map(|&(v, c)| row(Gait::Walk, v, p, 0, c))
+                .collect();
+            Study::analyse(&rows, SEL).gaits.remove(0)
+        };
+        // Every point fell at the lowest speed only: stable everywhere, and the constant and
+        // the improvement cover the speeds with a table entry.
+        let w = walk(&[
+            (0.05, None),
+            (0.1, Some(0.9)),
+            (0.3, Some(0.8)),
+            (0.5, Some(0.7)),
+        ]);
+        assert_eq!(w.instability, None);
+        assert!(w.is_stable(1.0));
+        assert_eq!(w.constant.unwrap().per_speed.len(), 3);
+        // A gap in the middle neither.
+        let w = walk(&[(0.1, Some(0.9)), (0.3, None), (0.5, Some(0.8))]);
+        assert_eq!(w.instability, None);
+        // The jump is measured from the previous speed with a selectable point, across a gap.
+        let w = walk(&[(0.1, Some(0.5)), (0.3, None), (0.5, Some(0.9))]);
+        let i = w.instability.unwrap();
+        assert_eq!(i.speed_mps, 0.5);
+        assert!(matches!(
+            i.reason,
+            InstabilityReason::CotJump { from_speed_mps, .. } if from_speed_mps == 0.1
+        ));
+        // Gaps at both ends: unstable from the lowest speed of the top gap, not the bottom one.
+        let w = walk(&[
+            (0.05, None),
+            (0.1, Some(0.9)),
+            (0.3, None),
+            (0.5, Some(0.8)),
+            (0.7, None),
+            (1.0, None),
+        ]);
+        let i = w.instability.unwrap();
+        assert_eq!((i.speed_mps, i.reason), (0.7, InstabilityReason::AllFell));
+        assert!(w.is_stable(0.5) && !w.is_stable(0.7) && !w.is_stable(1.0));
+        // The lower of the two rules wins: a jump below the top gap.
+        let w = walk(&[(0.1, Some(0.5)), (0.3, Some(0.9)), (0.5, None)]);
+        assert_eq!(w.instability.unwrap().speed_mps, 0.3);
+    }
+
+    #[test]
+    fn failed_runs_are_counted_apart_from_falls_and_are_not_instability() {
+        let (a, b) = (params(0.25), params(0.2));
+        let rows = vec![
+            row(Gait::Walk, 0.1, a, 0, Some(0.9)),
+            row(Gait::Walk, 0.1, b, 0, Some(0.8)),
+            row(Gait::Walk, 0.5, a, 0, None),
+            failed(Gait::Walk, 0.5, b),
+            failed(Gait::Walk, 0.7, a),
+            failed(Gait::Walk, 0.7, b),
+        ];
+        let w = Study::analyse(&rows, SEL).gaits.remove(0);
+        let s = &w.speeds[1];
+        assert_eq!((s.points, s.fell, s.failed), (2, 1, 1));
+        // From 0.5 up nothing is selectable: 1 fell, 3 failed; not "every point fell".
+        let i = w.instability.unwrap();
+        assert_eq!(i.speed_mps, 0.5);
+        assert!(matches!(
+            i.reason,
+            InstabilityReason::NoneSelectable {
+                points: 4,
+                fell: 1,
+                failed: 3,
+                ..
+            }
+        ));
+        // Nothing but failures above the table: no instability claimed.
+        let w = Study::analyse(
+            &rows[..2]
+                .iter()
+                .chain(&rows[4..])
+                .cloned()
+                .collect::<Vec<_>>(),
+            SEL,
+        )
+        .gaits
+        .remove(0);
+        assert_eq!(w.instability, None);
+        assert_eq!(w.speeds[1].failed, 2);
+    }
+
+    #[test]
+    fn a_mean_speed_off_the_command_by_more_than_the_ratio_is_excluded() {
+        let (a, b) = (params(0.25), params(0.2));
+        let mut slow = row(Gait::Trot, 0.05, b, 0, Some(0.3));
+        // 0.08 m/s for a 0.05 m/s command: +60 %, within the RMSE limit.
+        slow.distance_m = 0.08 * slow.metrics_window_s;
+        let rows = vec![row(Gait::Trot, 0.05, a, 0, Some(0.5)), slow];
+        let study = Study::analyse(&rows, SEL);
+        let t = study.gait(Gait::Trot).unwrap();
+        assert_eq!(t.best_at(0.05).unwrap().summary.point.params, a);
+        assert_eq!(t.speeds[0].off_command, 1);
+        let excluded = &study.points[0];
+        assert!(
+            matches!(excluded.exclusion(&SEL), Some(Exclusion::OffSpeed(v)) if (v - 0.08).abs() < 1e-12)
+        );
+        // Allowed with a looser ratio.
+        let loose = SelectionConfig {
+            max_speed_error_ratio: 0.7,
+            ..SEL
+        };
+        let t = Study::analyse(&rows, loose).gaits.remove(0);
+        assert_eq!(t.best_at(0.05).unwrap().summary.point.params, b);
+        // No mean speed (metrics window of zero): no metrics.
+        let mut blind = row(Gait::Trot, 0.05, a, 0, Some(0.5));
+        blind.metrics_window_s = 0.0;
+        let p = &summarize(&[blind])[0];
+        assert_eq!(p.exclusion(&SEL), Some(Exclusion::NoMetrics));
+    }
+
+    #[test]
+    fn both_improvements_use_the_stable_speeds_where_both_are_selectable() {
+        // P1 is the best constant over the stable range (0.1, 0.3); walk is unstable at 0.7
+        // (CoT jump), where the table still has an entry and P1 is selectable.
+        let (p1, p2) = (params(0.25), params(0.2));
+        let rows = vec![
+            row(Gait::Walk, 0.1, p1, 0, Some(0.48)),
+            row(Gait::Walk, 0.3, p1, 0, Some(0.4)),
+            row(Gait::Walk, 0.7, p1, 0, Some(3.0)),
+            row(Gait::Walk, 0.1, p2, 0, Some(0.4)),
+            row(Gait::Walk, 0.3, p2, 0, Some(0.5)),
+            row(Gait::Walk, 0.7, p2, 0, Some(2.0)),
+        ];
+        let study = Study::analyse(&rows, SEL);
+        let w = study.gait(Gait::Walk).unwrap();
+        assert_eq!(w.instability.unwrap().speed_mps, 0.7);
+        assert_eq!(w.best().count(), 3);
+        // Table: 0.1 → P2 (0.4), 0.3 → P1 (0.4). Constant P1 (mean score 0.44 − 0.03 < P2's
+        // 0.45 − 0.03) at 0.1, 0.3: ((0.48 − 0.4)/0.48 + 0)/2.
+        let c = w.constant.as_ref().unwrap();
+        assert_eq!(c.params, p1);
+        let expected = 100.0 * (0.08 / 0.48) / 2.0;
+        assert!((w.improvement_pct.unwrap() - expected).abs() < 1e-9);
+        // The same parameters as "fixed" give the same number: 0.7 m/s is left out although
+        // both are selectable there.
+        let fixed = study.fixed_params(Gait::Walk, &p1).unwrap();
+        assert_eq!(fixed.selectable(), 3);
+        let i = fixed.improvement(w).unwrap();
+        assert_eq!(i.speeds_mps, vec![0.1, 0.3]);
+        assert!((i.pct - w.improvement_pct.unwrap()).abs() < 1e-12);
+        assert_eq!(cot_saving(0.5, 0.4), (0.5 - 0.4) / 0.5);
     }
 
     #[test]

@@ -4,7 +4,9 @@
 //!   start with another grid is rejected.
 //! - `results.csv`: one row per finished run, appended and flushed as each run ends, in any
 //!   order. A kill can only leave a partial last line (each row is one `write`); opening the
-//!   store cuts it away, so the run is simply done again.
+//!   store cuts it away, so the run is simply done again. A row with an `error` (the run could
+//!   not be done: simulator error, panic) is not a result: opening the store drops such rows
+//!   (rewriting the file atomically) so those runs are tried again.
 //! - `sessions.csv`: one row per `eemp sweep` invocation that ended (elapsed time, threads), for
 //!   the report's throughput.
 //! - `.lock`: held (advisory file lock) while a sweep or merge writes the folder.
@@ -252,12 +254,17 @@ pub struct LoadedResults {
     pub dropped_tail: Option<(u64, String)>,
     /// Identical repeats of a run that were skipped.
     pub duplicates: usize,
+    /// Rows of failed runs (non-empty `error`) replaced by another row of the same run: a
+    /// retry's result, or a later failure (the latest failure is kept).
+    pub superseded_failures: usize,
 }
 
 /// Reads a `results.csv` without changing it. A damaged *last* line (no newline, wrong column
 /// count, unparsable) is reported in `dropped_tail`; damage anywhere else, a header from
 /// another format, a row whose `run_id` does not match its parameters, or two different results
-/// for one run are errors.
+/// for one run are errors. A failed run's row (see [`ResultRow::failed`]) is not a result: a
+/// later row of the same run replaces it, and it never replaces a result
+/// ([`prefer_result`]).
 pub fn load_results(path: &Path) -> Result<LoadedResults, StudyError> {
     let bytes = match std::fs::read(path) {
         Ok(b) => b,
@@ -313,6 +320,12 @@ pub fn load_results(path: &Path) -> Result<LoadedResults, StudyError> {
                 }
                 match by_id.get(&row.run_id) {
                     Some(&i) if out.rows[i].same_result(&row) => out.duplicates += 1,
+                    Some(&i) if out.rows[i].failed() || row.failed() => {
+                        out.superseded_failures += 1;
+                        if prefer_result(&out.rows[i], &row) {
+                            out.rows[i] = row;
+                        }
+                    }
                     Some(&i) => {
                         return Err(bad(format!(
                             "line {line_no}: run {} appears again with different results \
@@ -339,6 +352,13 @@ pub fn load_results(path: &Path) -> Result<LoadedResults, StudyError> {
         out.valid_len = bytes.len() as u64 - len;
     }
     Ok(out)
+}
+
+/// Of two rows of one run of which at least one failed: whether `new` replaces `kept`. A
+/// result (the run ran, fell or not) beats a failure; of two failures the later is kept.
+pub fn prefer_result(kept: &ResultRow, new: &ResultRow) -> bool {
+    debug_assert!(kept.failed() || new.failed());
+    kept.failed()
 }
 
 fn parse_row(line: &[u8]) -> Result<ResultRow, String> {
@@ -418,10 +438,13 @@ pub fn load_stored_config(dir: &Path) -> Result<Option<SweepConfig>, StudyError>
     SweepConfig::load(&path).map(Some)
 }
 
-/// Writes `text` to `path` through a temporary file and a rename, so readers never see half.
+/// Writes `text` to `path` through a temporary file (synced to disk) and a rename, so readers
+/// never see half and a crash leaves the old file or the new one.
 pub fn write_atomic(path: &Path, text: &[u8]) -> Result<(), StudyError> {
     let tmp = path.with_extension("tmp");
-    std::fs::write(&tmp, text).map_err(|e| StudyError::write(&tmp, e))?;
+    File::create(&tmp)
+        .and_then(|mut f| f.write_all(text).and_then(|()| f.sync_all()))
+        .map_err(|e| StudyError::write(&tmp, e))?;
     std::fs::rename(&tmp, path).map_err(|e| StudyError::write(path, e))
 }
 
@@ -455,8 +478,11 @@ impl FolderLock {
 /// What opening a sweep folder found.
 #[derive(Debug, Default)]
 pub struct ResumeState {
-    /// Runs already in `results.csv`.
+    /// Runs already in `results.csv` with a result (rows of failed runs do not count).
     pub done: BTreeSet<RunId>,
+    /// Rows of failed runs (non-empty `error`) removed from `results.csv`, so that those runs
+    /// are tried again.
+    pub dropped_failed: usize,
     /// The partial last line that was cut away: (bytes, reason).
     pub repaired: Option<(u64, String)>,
     /// The stored `[selection]` differed and was replaced by the new one.
@@ -474,7 +500,9 @@ pub struct ResultStore {
 impl ResultStore {
     /// Opens (or creates) the sweep folder `dir` for `config`: takes the lock, checks or writes
     /// `sweep.toml`, loads `results.csv`, cuts away a partial last line and checks every row
-    /// belongs to this grid (and `shard`, if given).
+    /// belongs to this grid (and `shard`, if given). Rows of failed runs are removed (the file
+    /// is rewritten through a temporary file and a rename) and their runs are not `done`, so
+    /// a sweep first run in a broken environment is completed by running it again.
     pub fn open(
         dir: &Path,
         config: &SweepConfig,
@@ -524,7 +552,11 @@ impl ResultStore {
                     ),
                 });
             }
-            state.done.insert(row.run_id);
+            if row.failed() {
+                state.dropped_failed += 1;
+            } else {
+                state.done.insert(row.run_id);
+            }
         }
 
         // Only now, with everything checked, is anything written.
@@ -535,25 +567,20 @@ impl ResultStore {
             state.selection_updated = stored.is_some();
             write_atomic(&sweep_path, config.to_toml().as_bytes())?;
         }
-        let mut file = OpenOptions::new()
-            .create(true)
-            .truncate(false)
-            .read(true)
-            .write(true)
-            .open(&path)
-            .map_err(|e| StudyError::write(&path, e))?;
-        if loaded.needs_header {
-            file.set_len(0).map_err(|e| StudyError::write(&path, e))?;
-            file.write_all(format!("{}\n", header_line()).as_bytes())
-                .map_err(|e| StudyError::write(&path, e))?;
-        } else if loaded.dropped_tail.is_some() {
-            file.set_len(loaded.valid_len)
-                .map_err(|e| StudyError::write(&path, e))?;
-        }
         if !loaded.needs_header {
-            state.repaired = loaded.dropped_tail;
+            state.repaired = loaded.dropped_tail.clone();
         }
-        drop(file);
+        if state.dropped_failed > 0 || loaded.superseded_failures > 0 {
+            // Without the failed rows (and any partial last line); a kill during the rewrite
+            // leaves the old file, and the next start does this again.
+            let mut text = format!("{}\n", header_line()).into_bytes();
+            for row in loaded.rows.iter().filter(|r| !r.failed()) {
+                text.extend(row.to_line());
+            }
+            write_atomic(&path, &text)?;
+        } else {
+            Self::repair(&path, &loaded)?;
+        }
         let file = OpenOptions::new()
             .append(true)
             .open(&path)
@@ -566,6 +593,26 @@ impl ResultStore {
             },
             state,
         ))
+    }
+
+    /// Writes the header of a new (or headerless) file, or cuts away a partial last line.
+    fn repair(path: &Path, loaded: &LoadedResults) -> Result<(), StudyError> {
+        let mut file = OpenOptions::new()
+            .create(true)
+            .truncate(false)
+            .read(true)
+            .write(true)
+            .open(path)
+            .map_err(|e| StudyError::write(path, e))?;
+        if loaded.needs_header {
+            file.set_len(0).map_err(|e| StudyError::write(path, e))?;
+            file.write_all(format!("{}\n", header_line()).as_bytes())
+                .map_err(|e| StudyError::write(path, e))?;
+        } else if loaded.dropped_tail.is_some() {
+            file.set_len(loaded.valid_len)
+                .map_err(|e| StudyError::write(path, e))?;
+        }
+        Ok(())
     }
 
     /// Appends one row as a single write and flushes it.
@@ -587,6 +634,13 @@ mod tests {
     use crate::grid::GridPoint;
 
     pub(crate) fn row(gait: Gait, speed: f64, seed: u64, cot: Option<f64>) -> ResultRow {
+        let mut r = failed_row(gait, speed, seed, cot);
+        r.error.clear();
+        r
+    }
+
+    /// A row of a run that could not be done (its error message has a line break).
+    fn failed_row(gait: Gait, speed: f64, seed: u64, cot: Option<f64>) -> ResultRow {
         let spec = RunSpec {
             index: 0,
             point: GridPoint {
@@ -634,7 +688,7 @@ mod tests {
     #[test]
     fn a_row_is_one_line_and_round_trips() {
         for r in [
-            row(Gait::Walk, 0.1, 7, None),
+            failed_row(Gait::Walk, 0.1, 7, None),
             row(Gait::Trot, 1.0, 0, Some(0.123_456_789_012_345_67)),
         ] {
             let line = r.to_line();
@@ -689,6 +743,15 @@ mod tests {
         std::fs::write(&path, &dup).unwrap();
         let e = load_results(&path).unwrap_err().to_string();
         assert!(e.contains("different results"), "{e}");
+        // A failed run's row is replaced by a later row of that run, never the other way.
+        let mut retried = text.clone();
+        retried.extend(failed_row(Gait::Trot, 0.1, 0, None).to_line());
+        retried.extend(row(Gait::Trot, 0.1, 0, Some(0.7)).to_line());
+        retried.extend(failed_row(Gait::Trot, 0.1, 0, None).to_line());
+        std::fs::write(&path, &retried).unwrap();
+        let l = load_results(&path).unwrap();
+        assert_eq!((l.rows.len(), l.superseded_failures), (2, 2));
+        assert!(!l.rows[1].failed() && l.rows[1].cot == Some(0.7));
         // Cut inside the header.
         std::fs::write(&path, "run_id,poi").unwrap();
         let l = load_results(&path).unwrap();

@@ -135,3 +135,34 @@ fn shards_of_different_grids_are_rejected() {
     assert!(err.to_string().contains("not a sweep folder"), "{err}");
     assert!(merge(&[], &root.path().join("m")).is_err());
 }
+
+#[test]
+fn a_retried_shard_replaces_its_failed_rows_in_an_earlier_merge() {
+    let root = tempfile::tempdir().unwrap();
+    let config = config(GRID);
+    let opts = |k: usize| SweepOptions {
+        shard: Some(format!("{k}/2").parse().unwrap()),
+        ..options(2)
+    };
+    let (a, b) = (root.path().join("a"), root.path().join("b"));
+    run_sweep(&config, &a, &opts(1), fake).unwrap();
+    let broken = |r: &eemp_study::RunSpec| {
+        if r.index % 4 == 1 {
+            eemp_study::RunOutcome::failed("no simulator")
+        } else {
+            fake(r)
+        }
+    };
+    let first = run_sweep(&config, &b, &opts(2), broken).unwrap();
+    assert_eq!(first.failed, 12);
+    let out = root.path().join("merged");
+    merge(&[a.clone(), b.clone()], &out).unwrap();
+    assert_eq!(rows(&out).iter().filter(|r| r.failed()).count(), 12);
+    // Shard 2 run again: its failed runs are retried; merging again into the same folder
+    // (whose old rows are among the sources) keeps the results.
+    let again = run_sweep(&config, &b, &opts(2), fake).unwrap();
+    assert_eq!((again.dropped_failed, again.ran), (12, 12));
+    let s = merge(&[a, b], &out).unwrap();
+    assert_eq!((s.rows, s.superseded_failures, s.missing), (48, 12, 0));
+    assert!(rows(&out).iter().all(|r| !r.failed()));
+}

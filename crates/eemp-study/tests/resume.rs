@@ -6,7 +6,7 @@ mod common;
 use common::{config, fake, options, GRID};
 use eemp_study::grid::RunId;
 use eemp_study::store::{load_results, ResultStore, RESULTS_FILE, SWEEP_FILE};
-use eemp_study::{run_sweep, ResultRow, Shard, StudyError};
+use eemp_study::{run_sweep, ResultRow, RunOutcome, Shard, StudyError};
 use std::collections::BTreeSet;
 use std::io::Write;
 use std::sync::Mutex;
@@ -161,6 +161,67 @@ fn a_panicking_run_is_recorded_as_failed_and_the_sweep_goes_on() {
     let failed: Vec<&ResultRow> = rows.iter().filter(|r| r.failed()).collect();
     assert_eq!(failed.len(), 1);
     assert!(failed[0].error.contains("boom at 7"), "{}", failed[0].error);
+}
+
+#[test]
+fn failed_runs_are_dropped_and_tried_again_on_the_next_start() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = config(GRID);
+    let path = dir.path().join(RESULTS_FILE);
+    // A broken environment: every third run cannot be done; then a kill mid-row.
+    let broken = |r: &eemp_study::RunSpec| {
+        if r.index.is_multiple_of(3) {
+            RunOutcome::failed(format!("no simulator for #{}", r.index))
+        } else {
+            fake(r)
+        }
+    };
+    let first = run_sweep(&config, dir.path(), &options(2), broken).unwrap();
+    assert_eq!((first.ran, first.failed, first.dropped_failed), (48, 16, 0));
+    let half = ResultRow::new(&config.grid.runs()[0], &fake(&config.grid.runs()[0]), 0.1);
+    let mut f = std::fs::OpenOptions::new()
+        .append(true)
+        .open(&path)
+        .unwrap();
+    f.write_all(&half.to_line()[..20]).unwrap();
+    drop(f);
+
+    // Fixed: exactly the failed runs are run again; nothing else is redone.
+    let calls = Mutex::new(Vec::<usize>::new());
+    let second = run_sweep(&config, dir.path(), &options(2), |r| {
+        calls.lock().unwrap().push(r.index);
+        fake(r)
+    })
+    .unwrap();
+    assert_eq!(second.dropped_failed, 16);
+    assert_eq!(
+        (second.already_done, second.ran, second.failed),
+        (32, 16, 0)
+    );
+    assert!(second.repaired.is_some());
+    let mut calls = calls.into_inner().unwrap();
+    calls.sort_unstable();
+    assert_eq!(calls, (0..48).filter(|i| i % 3 == 0).collect::<Vec<_>>());
+
+    // One row per run, none failed, and the file reads back cleanly.
+    let loaded = load_results(&path).unwrap();
+    assert_eq!(loaded.rows.len(), 48);
+    assert_eq!((loaded.duplicates, loaded.superseded_failures), (0, 0));
+    assert!(loaded.dropped_tail.is_none());
+    assert!(loaded.rows.iter().all(|r| !r.failed()));
+    let ids: BTreeSet<RunId> = loaded.rows.iter().map(|r| r.run_id).collect();
+    assert_eq!(ids.len(), 48);
+    assert!(!dir.path().join("results.tmp").exists());
+
+    // Nothing left to retry.
+    let third = run_sweep(&config, dir.path(), &options(1), |_| {
+        panic!("nothing to do")
+    })
+    .unwrap();
+    assert_eq!(
+        (third.ran, third.dropped_failed, third.already_done),
+        (0, 0, 48)
+    );
 }
 
 #[test]
