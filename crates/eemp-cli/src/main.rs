@@ -30,6 +30,7 @@ enum Command {
     },
     /// Print the MuJoCo model (MJCF) generated from the robot file.
     Model {
+        /// Robot description (default: the shipped A1, robots/a1.toml).
         #[arg(long)]
         robot: Option<std::path::PathBuf>,
     },

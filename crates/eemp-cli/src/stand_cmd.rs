@@ -12,6 +12,8 @@ use nalgebra::Vector3;
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
+// `--duration -1` must reach the range check rather than be taken for an option.
+#[command(allow_negative_numbers = true)]
 pub struct StandArgs {
     /// Simulated seconds to run.
     #[arg(long, default_value_t = 20.0)]
@@ -26,8 +28,8 @@ pub struct StandArgs {
     /// Lateral (world y) velocity change of the push, m/s.
     #[arg(long, default_value_t = 0.3)]
     pub push_dv: f64,
-    /// Time between MPC solves, s. Standing is quasi-static: 20 ms tracks as well as 10 ms
-    /// (walking's default) at half the cost.
+    /// Time between MPC solves, s (standing is quasi-static: 20 ms tracks as well as 10 ms at
+    /// half the cost).
     #[arg(long, default_value_t = 0.02)]
     pub mpc_period: f64,
     /// Rows per second in trace.csv (the simulation runs at 1000 Hz; writing every step costs

@@ -13,6 +13,8 @@ use nalgebra::Vector3;
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
+// `--speed -0.3` is a backward command and `--duration -1` must reach the range check.
+#[command(allow_negative_numbers = true)]
 pub struct WalkArgs {
     /// trot, walk or free (no predetermined order).
     #[arg(long, default_value = "trot")]
@@ -69,8 +71,10 @@ pub struct WalkArgs {
     /// about a quarter of the run time).
     #[arg(long, default_value_t = 100.0)]
     pub trace_hz: f64,
+    /// Robot description (default: the shipped A1, robots/a1.toml).
     #[arg(long)]
     pub robot: Option<PathBuf>,
+    /// Output folder.
     #[arg(long, default_value = "out/walk")]
     pub out: PathBuf,
 }

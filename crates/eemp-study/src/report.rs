@@ -731,7 +731,7 @@ fn paper_table(study: &Study) -> Block {
             let text = match study.fixed_params(g.gait, &PlannerParams::default()) {
                 None => "not on the grid".to_string(),
                 Some(f) => format!(
-                    "{} (Table II selectable at {} of {} table speeds)",
+                    "{} (Table II selectable at {} of the grid's {} speeds)",
                     f.improvement(g).map_or(
                         "– (not selectable at any stable-range table speed)".into(),
                         |i| improvement_text(&i)
