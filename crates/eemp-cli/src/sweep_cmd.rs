@@ -2,7 +2,7 @@
 //! shard folders, write the report.
 
 use eemp_study::merge::merge;
-use eemp_study::{run_sweep, simulate, ProgressMode, Shard, SweepConfig, SweepOptions};
+use eemp_study::{run_sweep, simulator, ProgressMode, Shard, SweepConfig, SweepOptions};
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
@@ -103,7 +103,8 @@ fn sweep(args: &SweepArgs) -> Result<(), String> {
         shard,
         progress: ProgressMode::Auto,
     };
-    let s = run_sweep(&config, out, &options, simulate).map_err(|e| e.to_string())?;
+    let s =
+        run_sweep(&config, out, &options, simulator(&config.grid)).map_err(|e| e.to_string())?;
     if let Some((bytes, reason)) = &s.repaired {
         eprintln!(
             "note: cut {bytes} byte(s) from the end of {} ({reason}): that run is done again",

@@ -40,8 +40,7 @@ pub fn write_report(dir: &Path, tables_out: Option<&Path>) -> Result<Vec<String>
     let study = Study::analyse(&loaded.rows, config.selection);
     let mut written: Vec<String> = Vec::new();
     let mut write_tables = |to: &Path| {
-        let w =
-            report::write_tables(dir, to, &study, &config.grid.gaits).map_err(|e| e.to_string())?;
+        let w = report::write_tables(dir, to, &study, &config.grid).map_err(|e| e.to_string())?;
         for path in &w.removed {
             eprintln!(
                 "note: removed {}: its gait no longer has a selectable point",

@@ -41,9 +41,10 @@ pub struct WalkArgs {
     /// EEMP-Analytical: a per-speed parameter table (tables/a1_<gait>.toml) used in place of --params.
     #[arg(long, conflicts_with = "params")]
     pub params_table: Option<PathBuf>,
-    /// Factor on V·ΔT in eq. (6): 0.5 = the paper's eq. (6) (default), 1.0 = its Algorithm 1.
-    #[arg(long, default_value_t = 0.5)]
-    pub progress_factor: f64,
+    /// Factor on V·ΔT in eq. (6): 0.5 = the paper's eq. (6), 1.0 = its Algorithm 1.
+    /// Default: the --params-table's own factor if it records one, else 0.5.
+    #[arg(long)]
+    pub progress_factor: Option<f64>,
     /// Re-evaluate eq. (6) during each swing with the velocity measured at that moment
     /// (`false`: touchdown fixed at lift-off).
     #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
@@ -95,9 +96,16 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
         Some(p) => load_toml(p).map_err(|e| e.to_string())?,
         None => PlannerParams::default(),
     };
+    let params_table = match &args.params_table {
+        Some(p) => Some(
+            eemp_core::planner::params_table::ParamsTable::load(p).map_err(|e| e.to_string())?,
+        ),
+        None => None,
+    };
+    let progress_factor = progress_factor(args.progress_factor, params_table.as_ref());
     let planner = PlannerConfig {
         gait,
-        progress_factor: args.progress_factor,
+        progress_factor,
         retarget_swing: args.retarget_swing,
         max_accel_mps2: args.max_accel,
         preview_swings: args.preview_swings,
@@ -113,11 +121,7 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
     }
     spec.controller.mpc_period_s = args.mpc_period;
     spec.floor_friction = args.friction;
-    if let Some(p) = &args.params_table {
-        spec.params_table = Some(
-            eemp_core::planner::params_table::ParamsTable::load(p).map_err(|e| e.to_string())?,
-        );
-    }
+    spec.params_table = params_table;
     if let Some(at) = args.push_at {
         if !(at.is_finite() && at >= 0.0 && at < args.duration) {
             return Err(format!(
@@ -249,7 +253,7 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
         "profile": args.profile.as_ref().map(|p| p.display().to_string()),
         "params": params,
         "params_table": args.params_table.as_ref().map(|p| p.display().to_string()),
-        "progress_factor": args.progress_factor,
+        "progress_factor": spec.planner.progress_factor,
         "retarget_swing": args.retarget_swing,
         "max_accel_mps2": args.max_accel,
         "preview_swings": args.preview_swings,
@@ -355,4 +359,37 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
         args.out.display()
     );
     Ok(())
+}
+
+/// Eq. (6)'s factor of a walk: the one given on the command line, else the one the parameter
+/// table was selected with (a table's entries are best with the factor they were found with),
+/// else the paper's 0.5.
+fn progress_factor(
+    given: Option<f64>,
+    table: Option<&eemp_core::planner::params_table::ParamsTable>,
+) -> f64 {
+    given
+        .or_else(|| table.and_then(|t| t.progress_factor))
+        .unwrap_or(PlannerConfig::default().progress_factor)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use eemp_core::planner::params_table::{Interpolation, ParamsTable, TableEntry};
+
+    #[test]
+    fn the_progress_factor_comes_from_the_option_then_the_table_then_the_paper() {
+        let table = ParamsTable::new(
+            Gait::Walk,
+            Interpolation::Nearest,
+            vec![TableEntry::new(0.3, &PlannerParams::default())],
+        )
+        .unwrap();
+        assert_eq!(progress_factor(None, None), 0.5);
+        assert_eq!(progress_factor(None, Some(&table)), 0.5);
+        let table = table.with_progress_factor(1.5).unwrap();
+        assert_eq!(progress_factor(None, Some(&table)), 1.5);
+        assert_eq!(progress_factor(Some(1.0), Some(&table)), 1.0);
+    }
 }

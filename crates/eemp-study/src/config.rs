@@ -12,6 +12,7 @@
 //! ellipse_ry_m = [0.05]                                 # r_y, 0.01–0.15
 //! duration_s = 20.0                                     # simulated seconds per run, 1–3600
 //! seeds = [0]                                           # 0 = unperturbed start
+//! progress_factor = { walk = 1.5 }                      # optional: eq. (6)'s factor per gait
 //!
 //! [selection]                                           # optional, these are the defaults
 //! max_vel_rmse_mps = 0.25
@@ -84,6 +85,43 @@ pub struct Grid {
     pub duration_s: f64,
     /// Start seeds (0 = unperturbed start; see `WalkSpec::seed`).
     pub seeds: Vec<u64>,
+    /// Eq. (6)'s progress factor of every run, per gait (a setting, not an axis: it does not
+    /// multiply the runs, and a run's id does not include it; the folder's `sweep.toml` does).
+    pub progress_factor: ProgressFactors,
+}
+
+/// Eq. (6)'s factor on V·ΔT per gait (`PlannerConfig::progress_factor`); default 0.5 (the
+/// paper's text) for every gait. A sweep file gives one number for all gaits or a table
+/// `{ trot = …, walk = …, free = … }` (gaits left out keep 0.5).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct ProgressFactors {
+    pub trot: f64,
+    pub walk: f64,
+    pub free: f64,
+}
+
+/// Allowed progress factor (as `PlannerConfig::validate`).
+pub const PROGRESS_FACTOR: [f64; 2] = [0.0, 2.0];
+
+impl Default for ProgressFactors {
+    fn default() -> Self {
+        let d = eemp_core::planner::PlannerConfig::default().progress_factor;
+        ProgressFactors {
+            trot: d,
+            walk: d,
+            free: d,
+        }
+    }
+}
+
+impl ProgressFactors {
+    pub fn get(&self, gait: Gait) -> f64 {
+        match gait {
+            Gait::Trot => self.trot,
+            Gait::Walk => self.walk,
+            Gait::Free => self.free,
+        }
+    }
 }
 
 impl Grid {
@@ -145,6 +183,12 @@ impl Grid {
         }
         if self.seeds != other.seeds {
             out.push(format!("seeds: {:?} vs {:?}", self.seeds, other.seeds));
+        }
+        if self.progress_factor != other.progress_factor {
+            out.push(format!(
+                "progress_factor: {:?} vs {:?}",
+                self.progress_factor, other.progress_factor
+            ));
         }
         out
     }
@@ -230,6 +274,7 @@ impl SweepConfig {
             )?,
             duration_s: v.duration(g.duration_s.0)?,
             seeds: v.seeds(&g.seeds)?,
+            progress_factor: v.progress_factor(g.progress_factor.as_ref())?,
         };
         if grid.checked_run_count().is_none_or(|n| n > MAX_RUNS) {
             let mut axes: Vec<usize> = grid.point_axes().to_vec();
@@ -377,6 +422,57 @@ impl Validator<'_> {
         Ok(values)
     }
 
+    fn progress_factor(&self, raw: Option<&toml::Value>) -> Result<ProgressFactors, StudyError> {
+        let mut out = ProgressFactors::default();
+        let number = |key: &str, v: &toml::Value| match v {
+            toml::Value::Float(x) => Ok(*x),
+            toml::Value::Integer(i) => Ok(*i as f64),
+            other => Err(self.error(
+                key,
+                format!("expected a number, found {}", other.type_str()),
+            )),
+        };
+        let check = |key: &str, v: f64| {
+            let [lo, hi] = PROGRESS_FACTOR;
+            if v.is_finite() && (lo..=hi).contains(&v) {
+                Ok(quantize(v))
+            } else {
+                Err(self.error(
+                    key,
+                    format!(
+                        "{v} is out of range: allowed [{lo}, {hi}] (factor on V·ΔT in eq. 6: \
+                         0.5 = the paper's text, 1 = its Algorithm 1)"
+                    ),
+                ))
+            }
+        };
+        const KEY: &str = "grid.progress_factor";
+        match raw {
+            None => {}
+            Some(toml::Value::Table(per_gait)) => {
+                for (name, value) in per_gait {
+                    let key = format!("{KEY}.{name}");
+                    let gait: Gait = name.parse().map_err(|e: String| self.error(&key, e))?;
+                    let v = check(&key, number(&key, value)?)?;
+                    match gait {
+                        Gait::Trot => out.trot = v,
+                        Gait::Walk => out.walk = v,
+                        Gait::Free => out.free = v,
+                    }
+                }
+            }
+            Some(value) => {
+                let v = check(KEY, number(KEY, value)?)?;
+                out = ProgressFactors {
+                    trot: v,
+                    walk: v,
+                    free: v,
+                };
+            }
+        }
+        Ok(out)
+    }
+
     fn duration(&self, v: f64) -> Result<f64, StudyError> {
         let [lo, hi] = DURATION_S;
         if v.is_finite() && (lo..=hi).contains(&v) {
@@ -472,6 +568,9 @@ struct RawGrid {
     ellipse_ry_m: AxisSpec,
     duration_s: Number,
     seeds: Vec<i64>,
+    /// `1.0` (every gait) or `{ walk = 1.5 }` (per gait); read by hand for clear errors.
+    #[serde(default)]
+    progress_factor: Option<toml::Value>,
 }
 
 #[derive(Deserialize, Default)]
@@ -797,6 +896,50 @@ seeds = [0, 1]
         big.ellipse_ry_m = vec![0.1; 1 << 20];
         assert_eq!(big.checked_run_count(), None);
         assert_eq!(big.run_count(), usize::MAX);
+    }
+
+    #[test]
+    fn progress_factor_is_one_number_or_per_gait_and_checked() {
+        let with = |line: &str| parse(&format!("{GOOD}{line}\n"));
+        let d = with("").unwrap().grid.progress_factor;
+        assert_eq!(d, ProgressFactors::default());
+        assert_eq!((d.trot, d.walk, d.free), (0.5, 0.5, 0.5));
+        let all = with("progress_factor = 1").unwrap().grid.progress_factor;
+        assert_eq!((all.trot, all.walk, all.free), (1.0, 1.0, 1.0));
+        let one = with("progress_factor = { walk = 1.5 }").unwrap().grid;
+        assert_eq!(one.progress_factor.get(Gait::Walk), 1.5);
+        assert_eq!(one.progress_factor.get(Gait::Trot), 0.5);
+        // It is part of the grid: a different factor is a different sweep, and the stored
+        // file gives it back.
+        assert!(one
+            .differences(&with("").unwrap().grid)
+            .iter()
+            .any(|d| d.starts_with("progress_factor")));
+        let stored = with("progress_factor = { walk = 1.5 }").unwrap();
+        assert_eq!(parse(&stored.to_toml()).unwrap(), stored);
+        for (line, needles) in [
+            (
+                "progress_factor = 2.5",
+                vec!["grid.progress_factor", "2.5", "[0, 2]"],
+            ),
+            (
+                "progress_factor = { walk = -1 }",
+                vec!["grid.progress_factor.walk", "-1"],
+            ),
+            (
+                "progress_factor = { gallop = 1 }",
+                vec!["grid.progress_factor.gallop", "unknown gait"],
+            ),
+            (
+                "progress_factor = \"fast\"",
+                vec!["grid.progress_factor", "expected a number"],
+            ),
+        ] {
+            let e = with(line).unwrap_err().to_string();
+            for n in needles {
+                assert!(e.contains(n), "{line}: '{n}' not in {e}");
+            }
+        }
     }
 
     #[test]

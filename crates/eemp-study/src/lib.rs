@@ -23,6 +23,6 @@ pub mod store;
 pub use config::{Grid, SelectionConfig, SweepConfig};
 pub use error::StudyError;
 pub use grid::{GridPoint, RunId, RunSpec, Shard};
-pub use runner::{run_sweep, simulate, ProgressMode, SweepOptions, SweepSummary};
+pub use runner::{run_sweep, simulate, simulator, ProgressMode, SweepOptions, SweepSummary};
 pub use select::Study;
 pub use store::{ResultRow, RunOutcome};

@@ -2,7 +2,7 @@
 //! the grid summary, tables, best constants, improvements and the comparison with the paper.
 //! Figures are drawn by the caller (`eemp-cli`) and passed in as PNG bytes.
 
-use crate::config::{SweepConfig, GAIT_ORDER};
+use crate::config::{Grid, SweepConfig, GAIT_ORDER};
 use crate::error::StudyError;
 use crate::select::{
     cot_jump_pct_text, cot_saving, most_fell_pct_text, Improvement, Scored, Study, COT_JUMP,
@@ -235,26 +235,29 @@ pub struct WrittenTables {
 }
 
 /// Writes `tables_dir/a1_<gait>.toml` for every gait of `study` with a table (each file
-/// through a temporary file and a rename), selected from the sweep folder `sweep_dir`. The
-/// table of a gait in `grid_gaits` that gets no table (no selectable point) is removed, so no
-/// stale table survives; other files, and tables of gaits this sweep did not run (another
-/// sweep's), are left alone.
+/// through a temporary file and a rename), selected from the sweep folder `sweep_dir` whose
+/// grid is `grid` (each table records its gait's progress factor). The table of a gait in the
+/// grid that gets no table (no selectable point) is removed, so no stale table survives; other
+/// files, and tables of gaits this sweep did not run (another sweep's), are left alone.
 pub fn write_tables(
     sweep_dir: &Path,
     tables_dir: &Path,
     study: &Study,
-    grid_gaits: &[Gait],
+    grid: &Grid,
 ) -> Result<WrittenTables, StudyError> {
+    let grid_gaits = &grid.gaits;
     let sel = &study.selection;
     let mut out = WrittenTables::default();
     for g in &study.gaits {
         let Some(table) = g.table(sel.interpolation) else {
             continue;
         };
-        let table = table.map_err(|e| StudyError::Results {
-            path: sweep_dir.to_path_buf(),
-            message: format!("the selected {} table is invalid: {e}", g.gait),
-        })?;
+        let table = table
+            .and_then(|t| t.with_progress_factor(grid.progress_factor.get(g.gait)))
+            .map_err(|e| StudyError::Results {
+                path: sweep_dir.to_path_buf(),
+                message: format!("the selected {} table is invalid: {e}", g.gait),
+            })?;
         std::fs::create_dir_all(tables_dir).map_err(|e| StudyError::write(tables_dir, e))?;
         let path = tables_dir.join(table_file_name(g.gait));
         let text = format!(
@@ -365,6 +368,15 @@ pub fn build(input: ReportInput) -> Document {
             axis_row("ellipse r_y [m]", &g.ellipse_ry_m),
             vec!["duration [s]".into(), g.duration_s.to_string(), "1".into()],
             vec!["seeds".into(), seeds.join(", "), seeds.len().to_string()],
+            vec![
+                "eq. (6) progress factor (a setting, not an axis)".into(),
+                g.gaits
+                    .iter()
+                    .map(|&gait| format!("{gait} {}", g.progress_factor.get(gait)))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                "1".into(),
+            ],
         ],
     });
 
@@ -817,6 +829,14 @@ mod tests {
         use crate::config::SelectionConfig;
         use crate::grid::{GridPoint, RunSpec};
         use crate::store::RunOutcome;
+        let config = SweepConfig::parse(
+            "[grid]\ngaits = [\"trot\", \"walk\"]\nspeed_mps = 0.5\nswing_time_s = 0.25\n\
+             step_height_m = 0.1\nbody_height_m = 0.31\nellipse_rx_m = 0.07\n\
+             ellipse_ry_m = 0.05\nduration_s = 20\nseeds = [0]\n\
+             progress_factor = { trot = 0.75 }\n",
+            Path::new("t.toml"),
+        )
+        .unwrap();
         let row = |gait: Gait, fell: bool| {
             let spec = RunSpec {
                 index: 0,
@@ -850,15 +870,19 @@ mod tests {
         for f in ["a1_walk.toml", "a1_free.toml", "notes.txt"] {
             std::fs::write(tables.join(f), "old\n").unwrap();
         }
-        let w = write_tables(&dir, &tables, &study, &[Gait::Trot, Gait::Walk]).unwrap();
+        let w = write_tables(&dir, &tables, &study, &config.grid).unwrap();
         assert_eq!(w.written, vec![(Gait::Trot, tables.join("a1_trot.toml"))]);
         assert_eq!(w.removed, vec![tables.join("a1_walk.toml")]);
         assert!(!tables.join("a1_walk.toml").exists());
         assert!(tables.join("a1_free.toml").exists() && tables.join("notes.txt").exists());
         let text = std::fs::read_to_string(tables.join("a1_trot.toml")).unwrap();
         assert!(text.contains("--params-table ") && text.contains("0.5 x the command"));
+        // The table records the progress factor its gait ran with.
+        let t = eemp_core::planner::params_table::ParamsTable::load(&tables.join("a1_trot.toml"))
+            .unwrap();
+        assert_eq!(t.progress_factor, Some(0.75));
         // Again: nothing more to remove.
-        let w = write_tables(&dir, &tables, &study, &[Gait::Trot, Gait::Walk]).unwrap();
+        let w = write_tables(&dir, &tables, &study, &config.grid).unwrap();
         assert!(w.removed.is_empty());
         std::fs::remove_dir_all(&dir).unwrap();
     }

@@ -1,7 +1,7 @@
 //! Running a sweep: the runs of the grid (or of one shard) that `results.csv` does not hold yet,
 //! in canonical order on a rayon pool, each row appended the moment its run ends.
 
-use crate::config::SweepConfig;
+use crate::config::{Grid, ProgressFactors, SweepConfig};
 use crate::error::StudyError;
 use crate::grid::{RunSpec, Shard};
 use crate::store::{append_sessions, ResultRow, ResultStore, RunOutcome, SessionRow};
@@ -18,12 +18,14 @@ use std::sync::{Mutex, OnceLock, PoisonError};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 /// The walking run of one grid point and seed: the A1 from rest, a constant forward command
-/// from 0.5 s on, metrics from min(2 s, duration/2) (see `WalkSpec::constant`).
-pub fn walk_spec(spec: &RunSpec) -> WalkSpec {
+/// from 0.5 s on, metrics from min(2 s, duration/2) (see `WalkSpec::constant`), eq. (6)'s
+/// progress factor of the point's gait from `factors`.
+pub fn walk_spec(spec: &RunSpec, factors: &ProgressFactors) -> WalkSpec {
     let p = &spec.point;
     let mut walk = WalkSpec::constant(
         PlannerConfig {
             gait: p.gait,
+            progress_factor: factors.get(p.gait),
             ..Default::default()
         },
         p.params,
@@ -37,11 +39,17 @@ pub fn walk_spec(spec: &RunSpec) -> WalkSpec {
     walk
 }
 
-/// Runs one grid point in MuJoCo (the runner `eemp sweep` uses).
-pub fn simulate(spec: &RunSpec) -> RunOutcome {
+/// The runner `eemp sweep` uses: each run in MuJoCo, with the grid's progress factors.
+pub fn simulator(grid: &Grid) -> impl Fn(&RunSpec) -> RunOutcome + Sync {
+    let factors = grid.progress_factor;
+    move |spec| simulate(spec, &factors)
+}
+
+/// Runs one grid point in MuJoCo.
+pub fn simulate(spec: &RunSpec, factors: &ProgressFactors) -> RunOutcome {
     static A1: OnceLock<RobotConfig> = OnceLock::new();
     let robot = A1.get_or_init(RobotConfig::a1);
-    let walk = walk_spec(spec);
+    let walk = walk_spec(spec, factors);
     match run_walk(robot, &walk, |_| {}) {
         Ok(run) => outcome_of(&run, walk.metrics_start_s),
         Err(e) => RunOutcome::failed(e.to_string()),

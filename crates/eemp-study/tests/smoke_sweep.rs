@@ -3,7 +3,7 @@
 
 use eemp_core::planner::Gait;
 use eemp_study::store::{load_results, RESULTS_FILE};
-use eemp_study::{run_sweep, simulate, ProgressMode, Study, SweepConfig, SweepOptions};
+use eemp_study::{run_sweep, simulator, ProgressMode, Study, SweepConfig, SweepOptions};
 use std::path::Path;
 
 #[test]
@@ -18,7 +18,7 @@ fn smoke_sweep_runs_for_real_and_a_rerun_redoes_nothing() {
         shard: None,
         progress: ProgressMode::Hidden,
     };
-    let first = run_sweep(&config, dir.path(), &options, simulate).unwrap();
+    let first = run_sweep(&config, dir.path(), &options, simulator(&config.grid)).unwrap();
     println!(
         "smoke: {} runs in {:.2} s ({:.2} runs/s, {} fell)",
         first.ran,
@@ -47,7 +47,7 @@ fn smoke_sweep_runs_for_real_and_a_rerun_redoes_nothing() {
     );
 
     let bytes = std::fs::read(&path).unwrap();
-    let again = run_sweep(&config, dir.path(), &options, simulate).unwrap();
+    let again = run_sweep(&config, dir.path(), &options, simulator(&config.grid)).unwrap();
     assert_eq!((again.ran, again.already_done), (0, n));
     assert_eq!(load_results(&path).unwrap().rows.len(), n);
     assert_eq!(std::fs::read(&path).unwrap(), bytes, "nothing rewritten");

@@ -64,6 +64,11 @@ pub struct ParamsTable {
     pub gait: Gait,
     #[serde(default)]
     pub interpolation: Interpolation,
+    /// Eq. (6)'s progress factor the entries were selected with
+    /// ([`super::PlannerConfig::progress_factor`]); `None` if the table does not say. A walk
+    /// that uses the table should use this factor too.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub progress_factor: Option<f64>,
     #[serde(rename = "entry")]
     pub entries: Vec<TableEntry>,
 }
@@ -80,6 +85,7 @@ impl ParamsTable {
         let table = ParamsTable {
             gait,
             interpolation,
+            progress_factor: None,
             entries,
         };
         table.validate()?;
@@ -88,7 +94,19 @@ impl ParamsTable {
 
     pub fn load(path: &std::path::Path) -> Result<Self, ConfigError> {
         let t: ParamsTable = crate::config_error::load_toml(path)?;
-        ParamsTable::new(t.gait, t.interpolation, t.entries)
+        let table = ParamsTable::new(t.gait, t.interpolation, t.entries)?;
+        match t.progress_factor {
+            Some(f) => table.with_progress_factor(f),
+            None => Ok(table),
+        }
+    }
+
+    /// Records the progress factor the table was selected with (checked as
+    /// `PlannerConfig::validate` checks it).
+    pub fn with_progress_factor(mut self, factor: f64) -> Result<Self, ConfigError> {
+        self.progress_factor = Some(factor);
+        self.validate()?;
+        Ok(self)
     }
 
     pub fn to_toml(&self) -> String {
@@ -96,6 +114,9 @@ impl ParamsTable {
     }
 
     pub fn validate(&self) -> Result<(), ConfigError> {
+        if let Some(f) = self.progress_factor {
+            check_range("progress_factor", f, 0.0, 2.0)?;
+        }
         if self.entries.is_empty() {
             return Err(ConfigError::Invalid {
                 name: "params table".into(),
@@ -209,6 +230,28 @@ mod tests {
         assert!((t.lookup(0.2).swing_time_s - 0.225).abs() < 1e-12);
         assert!((t.lookup(0.2).ellipse_rx_m - 0.085).abs() < 1e-12);
         assert_eq!(t.lookup(f64::NAN).swing_time_s, 0.25);
+    }
+
+    #[test]
+    fn the_progress_factor_is_kept_through_a_file_and_checked() {
+        let t = table(Interpolation::Nearest);
+        assert_eq!(t.progress_factor, None);
+        assert!(
+            !t.to_toml().contains("progress_factor"),
+            "absent means absent"
+        );
+        let t = t.with_progress_factor(1.5).unwrap();
+        let path = std::env::temp_dir().join(format!("eemp-table-pf-{}.toml", std::process::id()));
+        std::fs::write(&path, t.to_toml()).unwrap();
+        let back = ParamsTable::load(&path).unwrap();
+        std::fs::remove_file(&path).unwrap();
+        assert_eq!(back.progress_factor, Some(1.5));
+        assert_eq!(back, t);
+        let e = table(Interpolation::Nearest)
+            .with_progress_factor(2.5)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("progress_factor") && e.contains("2.5"), "{e}");
     }
 
     #[test]
