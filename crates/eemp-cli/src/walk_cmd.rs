@@ -102,6 +102,22 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
         ),
         None => None,
     };
+    if let Some(f) = args.progress_factor {
+        if !(f.is_finite() && (0.0..=2.0).contains(&f)) {
+            return Err(format!(
+                "--progress-factor {f} is out of range: allowed [0, 2] (0.5 = the paper's eq. 6, \
+                 1 = its Algorithm 1)"
+            ));
+        }
+        if let Some(theirs) = params_table.as_ref().and_then(|t| t.progress_factor) {
+            if theirs != f {
+                eprintln!(
+                    "note: --params-table was selected with progress factor {theirs}; walking \
+                     with --progress-factor {f} as asked"
+                );
+            }
+        }
+    }
     let progress_factor = progress_factor(args.progress_factor, params_table.as_ref());
     let planner = PlannerConfig {
         gait,

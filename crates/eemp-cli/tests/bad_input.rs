@@ -67,6 +67,14 @@ fn bad_walk_and_stand_input_exits_2_names_the_value_and_writes_nothing() {
             vec!["profile.toml"],
         ),
         (
+            vec!["walk".into(), "--progress-factor".into(), "3".into()],
+            vec!["--progress-factor 3", "[0, 2]"],
+        ),
+        (
+            vec!["walk".into(), "--progress-factor".into(), "-1".into()],
+            vec!["--progress-factor -1", "[0, 2]"],
+        ),
+        (
             vec!["stand".into(), "--duration".into(), "-3".into()],
             vec!["--duration -3", "(0, 3600]"],
         ),

@@ -87,13 +87,17 @@ pub struct Grid {
     pub seeds: Vec<u64>,
     /// Eq. (6)'s progress factor of every run, per gait (a setting, not an axis: it does not
     /// multiply the runs, and a run's id does not include it; the folder's `sweep.toml` does).
+    /// Gaits not in `gaits` keep the default.
+    #[serde(skip_serializing_if = "ProgressFactors::is_default")]
     pub progress_factor: ProgressFactors,
 }
 
 /// Eq. (6)'s factor on V·ΔT per gait (`PlannerConfig::progress_factor`); default 0.5 (the
 /// paper's text) for every gait. A sweep file gives one number for all gaits or a table
-/// `{ trot = …, walk = …, free = … }` (gaits left out keep 0.5).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+/// `{ trot = …, walk = …, free = … }` (gaits left out keep 0.5). Stored (serialised) as the
+/// table of the factors that differ from the default, so a grid that keeps the default stores
+/// no key, as before the setting existed.
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ProgressFactors {
     pub trot: f64,
     pub walk: f64,
@@ -114,7 +118,29 @@ impl Default for ProgressFactors {
     }
 }
 
+impl Serialize for ProgressFactors {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap;
+        let d = ProgressFactors::default();
+        let own: Vec<(Gait, f64)> = GAIT_ORDER
+            .iter()
+            .map(|&g| (g, self.get(g)))
+            .filter(|&(g, v)| v != d.get(g))
+            .collect();
+        let mut map = s.serialize_map(Some(own.len()))?;
+        for (g, v) in own {
+            map.serialize_entry(&g.to_string(), &v)?;
+        }
+        map.end()
+    }
+}
+
 impl ProgressFactors {
+    /// Every gait at the default (nothing to store).
+    pub fn is_default(&self) -> bool {
+        *self == ProgressFactors::default()
+    }
+
     pub fn get(&self, gait: Gait) -> f64 {
         match gait {
             Gait::Trot => self.trot,
@@ -244,8 +270,10 @@ impl SweepConfig {
         })?;
         let v = Validator { path };
         let g = &raw.grid;
+        let gaits = v.gaits(&g.gaits)?;
         let grid = Grid {
-            gaits: v.gaits(&g.gaits)?,
+            progress_factor: v.progress_factor(g.progress_factor.as_ref(), &gaits)?,
+            gaits,
             speed_mps: v.axis("speed_mps", &g.speed_mps, table_i::SPEED_MPS, "m/s")?,
             swing_time_s: v.axis("swing_time_s", &g.swing_time_s, table_i::SWING_TIME_S, "s")?,
             step_height_m: v.axis(
@@ -274,7 +302,6 @@ impl SweepConfig {
             )?,
             duration_s: v.duration(g.duration_s.0)?,
             seeds: v.seeds(&g.seeds)?,
-            progress_factor: v.progress_factor(g.progress_factor.as_ref())?,
         };
         if grid.checked_run_count().is_none_or(|n| n > MAX_RUNS) {
             let mut axes: Vec<usize> = grid.point_axes().to_vec();
@@ -422,7 +449,12 @@ impl Validator<'_> {
         Ok(values)
     }
 
-    fn progress_factor(&self, raw: Option<&toml::Value>) -> Result<ProgressFactors, StudyError> {
+    /// Gaits outside `gaits` keep the default, so two grids differ only in factors they use.
+    fn progress_factor(
+        &self,
+        raw: Option<&toml::Value>,
+        gaits: &[Gait],
+    ) -> Result<ProgressFactors, StudyError> {
         let mut out = ProgressFactors::default();
         let number = |key: &str, v: &toml::Value| match v {
             toml::Value::Float(x) => Ok(*x),
@@ -454,6 +486,16 @@ impl Validator<'_> {
                     let key = format!("{KEY}.{name}");
                     let gait: Gait = name.parse().map_err(|e: String| self.error(&key, e))?;
                     let v = check(&key, number(&key, value)?)?;
+                    if !gaits.contains(&gait) {
+                        // The default is harmless (and what an early stored file holds).
+                        if v == out.get(gait) {
+                            continue;
+                        }
+                        return Err(self.error(
+                            &key,
+                            format!("{gait} is not in grid.gaits; give factors of its gaits only"),
+                        ));
+                    }
                     match gait {
                         Gait::Trot => out.trot = v,
                         Gait::Walk => out.walk = v,
@@ -463,11 +505,13 @@ impl Validator<'_> {
             }
             Some(value) => {
                 let v = check(KEY, number(KEY, value)?)?;
-                out = ProgressFactors {
-                    trot: v,
-                    walk: v,
-                    free: v,
-                };
+                for &gait in gaits {
+                    match gait {
+                        Gait::Trot => out.trot = v,
+                        Gait::Walk => out.walk = v,
+                        Gait::Free => out.free = v,
+                    }
+                }
             }
         }
         Ok(out)
@@ -904,8 +948,18 @@ seeds = [0, 1]
         let d = with("").unwrap().grid.progress_factor;
         assert_eq!(d, ProgressFactors::default());
         assert_eq!((d.trot, d.walk, d.free), (0.5, 0.5, 0.5));
-        let all = with("progress_factor = 1").unwrap().grid.progress_factor;
-        assert_eq!((all.trot, all.walk, all.free), (1.0, 1.0, 1.0));
+        // One number sets the grid's gaits (GOOD has trot and walk); free, not in the grid,
+        // keeps the default, so it cannot make two equal sweeps differ.
+        let all = with("progress_factor = 1").unwrap().grid;
+        let f = all.progress_factor;
+        assert_eq!((f.trot, f.walk, f.free), (1.0, 1.0, 0.5));
+        assert_eq!(
+            with("progress_factor = { trot = 1, walk = 1.0 }")
+                .unwrap()
+                .grid
+                .differences(&all),
+            Vec::<String>::new()
+        );
         let one = with("progress_factor = { walk = 1.5 }").unwrap().grid;
         assert_eq!(one.progress_factor.get(Gait::Walk), 1.5);
         assert_eq!(one.progress_factor.get(Gait::Trot), 0.5);
@@ -916,7 +970,19 @@ seeds = [0, 1]
             .iter()
             .any(|d| d.starts_with("progress_factor")));
         let stored = with("progress_factor = { walk = 1.5 }").unwrap();
-        assert_eq!(parse(&stored.to_toml()).unwrap(), stored);
+        let text = stored.to_toml();
+        assert!(
+            text.contains("walk = 1.5") && !text.contains("trot = 0.5"),
+            "{text}"
+        );
+        assert_eq!(parse(&text).unwrap(), stored);
+        // The default stores nothing: a folder from before the setting reads the same.
+        assert!(!with("").unwrap().to_toml().contains("progress_factor"));
+        // A gait outside the grid at the default is harmless.
+        assert_eq!(
+            with("progress_factor = { walk = 1.5, free = 0.5 }").unwrap(),
+            stored
+        );
         for (line, needles) in [
             (
                 "progress_factor = 2.5",
@@ -933,6 +999,14 @@ seeds = [0, 1]
             (
                 "progress_factor = \"fast\"",
                 vec!["grid.progress_factor", "expected a number"],
+            ),
+            (
+                "progress_factor = { free = 1 }",
+                vec!["grid.progress_factor.free", "not in grid.gaits"],
+            ),
+            (
+                "progress_factor = { free = 3 }",
+                vec!["grid.progress_factor.free", "[0, 2]"],
             ),
         ] {
             let e = with(line).unwrap_err().to_string();

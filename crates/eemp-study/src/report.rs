@@ -238,7 +238,9 @@ pub struct WrittenTables {
 /// through a temporary file and a rename), selected from the sweep folder `sweep_dir` whose
 /// grid is `grid` (each table records its gait's progress factor). The table of a gait in the
 /// grid that gets no table (no selectable point) is removed, so no stale table survives; other
-/// files, and tables of gaits this sweep did not run (another sweep's), are left alone.
+/// files, and tables of gaits this sweep did not run (another sweep's), are left alone. A table
+/// file that was selected with another progress factor is neither replaced nor removed (an
+/// error): it belongs to another study (`tables/` holds the paper-factor tables).
 pub fn write_tables(
     sweep_dir: &Path,
     tables_dir: &Path,
@@ -247,6 +249,26 @@ pub fn write_tables(
 ) -> Result<WrittenTables, StudyError> {
     let grid_gaits = &grid.gaits;
     let sel = &study.selection;
+    // Refuse before writing anything.
+    for &gait in grid_gaits {
+        let path = tables_dir.join(table_file_name(gait));
+        let Ok(existing) = eemp_core::planner::params_table::ParamsTable::load(&path) else {
+            continue; // absent or not a table: nothing to protect
+        };
+        let default = eemp_core::planner::PlannerConfig::default().progress_factor;
+        let theirs = existing.progress_factor.unwrap_or(default);
+        let ours = grid.progress_factor.get(gait);
+        if theirs != ours {
+            return Err(StudyError::Results {
+                path: path.clone(),
+                message: format!(
+                    "this {gait} table was selected with progress factor {theirs}, this sweep \
+                     ran {gait} with {ours}; write the tables elsewhere (--tables-out) or \
+                     remove the file first"
+                ),
+            });
+        }
+    }
     let mut out = WrittenTables::default();
     for g in &study.gaits {
         let Some(table) = g.table(sel.interpolation) else {
@@ -630,7 +652,23 @@ pub fn build(input: ReportInput) -> Document {
 
     b.push(Block::Heading(1, "Paper vs this project".into()));
     b.push(paper_table(study));
-    b.push(Block::Bullets(vec![
+    let default_factor = eemp_core::planner::PlannerConfig::default().progress_factor;
+    let own_factor: Vec<String> = g
+        .gaits
+        .iter()
+        .filter(|&&gait| g.progress_factor.get(gait) != default_factor)
+        .map(|&gait| format!("{gait} {}", g.progress_factor.get(gait)))
+        .collect();
+    let mut notes = Vec::new();
+    if !own_factor.is_empty() {
+        notes.push(format!(
+            "Eq. (6) progress factor: this sweep ran {} instead of the paper's text ({}); every \
+             number of those gaits above, including the Table II row, is with that factor.",
+            own_factor.join(", "),
+            default_factor
+        ));
+    }
+    b.push(Block::Bullets(notes.into_iter().chain([
         format!(
             "Walk/trot energy: mean over the speeds ≤ {} m/s where both gaits have a selected \
              point of CoT_walk / CoT_trot (best per speed). The robot's mass is the same in both, \
@@ -666,7 +704,8 @@ pub fn build(input: ReportInput) -> Document {
         "The paper's numbers come from its own simulator and controller; the comparison is of \
          trends, not a reproduction to the digit."
             .into(),
-    ]));
+    ])
+    .collect()));
 
     if !figures.is_empty() {
         b.push(Block::Heading(1, "Figures".into()));
@@ -884,6 +923,21 @@ mod tests {
         // Again: nothing more to remove.
         let w = write_tables(&dir, &tables, &study, &config.grid).unwrap();
         assert!(w.removed.is_empty());
+        // A sweep that ran trot with another factor does not overwrite this table.
+        let mut other = config.grid.clone();
+        other.progress_factor.trot = 0.5;
+        let before = std::fs::read_to_string(tables.join("a1_trot.toml")).unwrap();
+        let e = write_tables(&dir, &tables, &study, &other)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("progress factor 0.75") && e.contains("with 0.5"),
+            "{e}"
+        );
+        assert_eq!(
+            std::fs::read_to_string(tables.join("a1_trot.toml")).unwrap(),
+            before
+        );
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

@@ -350,3 +350,38 @@ impl Progress {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::grid::GridPoint;
+    use eemp_core::planner::{Gait, PlannerParams};
+
+    #[test]
+    fn each_run_gets_the_progress_factor_of_its_gait() {
+        let factors = ProgressFactors {
+            walk: 1.5,
+            ..Default::default()
+        };
+        let spec = |gait| RunSpec {
+            index: 0,
+            point: GridPoint {
+                gait,
+                speed_mps: 0.3,
+                params: PlannerParams::default(),
+                duration_s: 20.0,
+            },
+            seed: 7,
+        };
+        let walk = walk_spec(&spec(Gait::Walk), &factors);
+        assert_eq!(walk.planner.progress_factor, 1.5);
+        assert_eq!(walk.planner.gait, Gait::Walk);
+        assert_eq!(walk.seed, 7);
+        assert_eq!(
+            walk_spec(&spec(Gait::Trot), &factors)
+                .planner
+                .progress_factor,
+            0.5
+        );
+    }
+}

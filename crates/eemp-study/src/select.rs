@@ -266,7 +266,7 @@ pub struct Instability {
 ///   works at that speed, and it would otherwise dictate the gait's best constant parameters.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum InstabilityReason {
-    /// No point is selectable from v up, and every point there that ran fell.
+    /// No point is selectable from v up, and every point there fell (none failed to run).
     AllFell,
     /// No point is selectable from v up; counts of grid points over those speeds.
     NoneSelectable {

@@ -94,11 +94,15 @@ impl ParamsTable {
 
     pub fn load(path: &std::path::Path) -> Result<Self, ConfigError> {
         let t: ParamsTable = crate::config_error::load_toml(path)?;
-        let table = ParamsTable::new(t.gait, t.interpolation, t.entries)?;
+        let table = ParamsTable::new(t.gait, t.interpolation, t.entries);
         match t.progress_factor {
-            Some(f) => table.with_progress_factor(f),
-            None => Ok(table),
+            Some(f) => table.and_then(|table| table.with_progress_factor(f)),
+            None => table,
         }
+        .map_err(|e| ConfigError::Invalid {
+            name: path.display().to_string(),
+            message: e.to_string(),
+        })
     }
 
     /// Records the progress factor the table was selected with (checked as
@@ -252,6 +256,12 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("progress_factor") && e.contains("2.5"), "{e}");
+        // From a file, the error names the file.
+        let bad = path.with_extension("bad.toml");
+        std::fs::write(&bad, t.to_toml().replace("1.5", "2.5")).unwrap();
+        let e = ParamsTable::load(&bad).unwrap_err().to_string();
+        std::fs::remove_file(&bad).unwrap();
+        assert!(e.contains("bad.toml") && e.contains("2.5"), "{e}");
     }
 
     #[test]
