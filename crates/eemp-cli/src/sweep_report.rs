@@ -50,10 +50,12 @@ pub fn write_report(dir: &Path, tables_out: Option<&Path>) -> Result<Vec<String>
         written.extend(w.written.iter().map(|t| t.1.display().to_string()));
         Ok::<_, String>(w)
     };
-    let own = write_tables(&dir.join(TABLES_DIR))?;
+    // The extra folder first: if it refuses (a table of another progress factor there),
+    // nothing has been written.
     if let Some(to) = tables_out {
         write_tables(to)?;
     }
+    let own = write_tables(&dir.join(TABLES_DIR))?;
     // Relative to the sweep folder, for the report's links.
     let tables: Vec<_> = own
         .written
@@ -259,7 +261,7 @@ fn draw_figures(dir: &Path, grid_speeds: &[f64], study: &Study) -> Result<Vec<Fi
                     p.body_height_m,
                     p.ellipse_rx_m,
                     p.ellipse_ry_m,
-                    g.improvement_pct.unwrap_or(f64::NAN)
+                    g.improvement.as_ref().map_or(f64::NAN, |i| i.pct)
                 );
             }
             Panel {

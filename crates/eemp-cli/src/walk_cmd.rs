@@ -103,10 +103,11 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
         None => None,
     };
     if let Some(f) = args.progress_factor {
-        if !(f.is_finite() && (0.0..=2.0).contains(&f)) {
+        let [lo, hi] = eemp_core::planner::PROGRESS_FACTOR_RANGE;
+        if !(f.is_finite() && (lo..=hi).contains(&f)) {
             return Err(format!(
-                "--progress-factor {f} is out of range: allowed [0, 2] (0.5 = the paper's eq. 6, \
-                 1 = its Algorithm 1)"
+                "--progress-factor {f} is out of range: allowed [{lo}, {hi}] (0.5 = the paper's \
+                 eq. 6, 1 = its Algorithm 1)"
             ));
         }
         if let Some(theirs) = params_table.as_ref().and_then(|t| t.progress_factor) {
@@ -386,7 +387,7 @@ fn progress_factor(
 ) -> f64 {
     given
         .or_else(|| table.and_then(|t| t.progress_factor))
-        .unwrap_or(PlannerConfig::default().progress_factor)
+        .unwrap_or(eemp_core::planner::PAPER_PROGRESS_FACTOR)
 }
 
 #[cfg(test)]

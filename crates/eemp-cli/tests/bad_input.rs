@@ -40,48 +40,43 @@ fn bad_walk_and_stand_input_exits_2_names_the_value_and_writes_nothing() {
     let malformed = dir.join("profile.toml");
     std::fs::write(&malformed, "[[segment]\nstart_s = ").unwrap();
     let missing = dir.join("missing.toml");
-    let p = |path: &Path| path.to_str().unwrap().to_string();
-    let cases: Vec<(Vec<String>, Vec<&str>)> = vec![
+    let (bad_params, missing, malformed) = (
+        bad_params.to_str().unwrap(),
+        missing.to_str().unwrap(),
+        malformed.to_str().unwrap(),
+    );
+    // (arguments, what the message must contain)
+    let cases: [(&[&str], &[&str]); 9] = [
         (
-            vec!["walk".into(), "--gait".into(), "gallop".into()],
-            vec!["gallop", "trot, walk, free"],
+            &["walk", "--gait", "gallop"],
+            &["gallop", "trot, walk, free"],
         ),
         (
-            vec!["walk".into(), "--duration".into(), "-1".into()],
-            vec!["--duration -1", "(0, 3600]"],
+            &["walk", "--duration", "-1"],
+            &["--duration -1", "(0, 3600]"],
+        ),
+        (&["walk", "--duration", "NaN"], &["--duration", "(0, 3600]"]),
+        (
+            &["walk", "--params", bad_params],
+            &["swing_time_s", "0.5", "[0.1, 0.25]"],
+        ),
+        (&["walk", "--params", missing], &["missing.toml"]),
+        (&["walk", "--profile", malformed], &["profile.toml"]),
+        (
+            &["walk", "--progress-factor", "3"],
+            &["--progress-factor 3", "[0, 2]"],
         ),
         (
-            vec!["walk".into(), "--duration".into(), "NaN".into()],
-            vec!["--duration", "(0, 3600]"],
+            &["walk", "--progress-factor", "-1"],
+            &["--progress-factor -1", "[0, 2]"],
         ),
         (
-            vec!["walk".into(), "--params".into(), p(&bad_params)],
-            vec!["swing_time_s", "0.5", "[0.1, 0.25]"],
-        ),
-        (
-            vec!["walk".into(), "--params".into(), p(&missing)],
-            vec!["missing.toml"],
-        ),
-        (
-            vec!["walk".into(), "--profile".into(), p(&malformed)],
-            vec!["profile.toml"],
-        ),
-        (
-            vec!["walk".into(), "--progress-factor".into(), "3".into()],
-            vec!["--progress-factor 3", "[0, 2]"],
-        ),
-        (
-            vec!["walk".into(), "--progress-factor".into(), "-1".into()],
-            vec!["--progress-factor -1", "[0, 2]"],
-        ),
-        (
-            vec!["stand".into(), "--duration".into(), "-3".into()],
-            vec!["--duration -3", "(0, 3600]"],
+            &["stand", "--duration", "-3"],
+            &["--duration -3", "(0, 3600]"],
         ),
     ];
     for (args, needles) in cases {
-        let args: Vec<&str> = args.iter().map(String::as_str).collect();
-        let (code, stderr, wrote) = eemp(&dir, &args);
+        let (code, stderr, wrote) = eemp(&dir, args);
         assert_eq!(code, Some(2), "{args:?}: {stderr}");
         for n in needles {
             assert!(stderr.contains(n), "{args:?}: '{n}' not in: {stderr}");

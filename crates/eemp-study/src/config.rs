@@ -24,7 +24,7 @@
 use crate::error::StudyError;
 use eemp_core::planner::params::table_i;
 use eemp_core::planner::params_table::Interpolation;
-use eemp_core::planner::Gait;
+use eemp_core::planner::{Gait, PAPER_PROGRESS_FACTOR, PROGRESS_FACTOR_RANGE};
 use serde::de::{self, Deserializer, MapAccess, SeqAccess, Visitor};
 use serde::{Deserialize, Serialize};
 use std::fmt;
@@ -104,12 +104,9 @@ pub struct ProgressFactors {
     pub free: f64,
 }
 
-/// Allowed progress factor (as `PlannerConfig::validate`).
-pub const PROGRESS_FACTOR: [f64; 2] = [0.0, 2.0];
-
 impl Default for ProgressFactors {
     fn default() -> Self {
-        let d = eemp_core::planner::PlannerConfig::default().progress_factor;
+        let d = PAPER_PROGRESS_FACTOR;
         ProgressFactors {
             trot: d,
             walk: d,
@@ -146,6 +143,14 @@ impl ProgressFactors {
             Gait::Trot => self.trot,
             Gait::Walk => self.walk,
             Gait::Free => self.free,
+        }
+    }
+
+    fn set(&mut self, gait: Gait, factor: f64) {
+        match gait {
+            Gait::Trot => self.trot = factor,
+            Gait::Walk => self.walk = factor,
+            Gait::Free => self.free = factor,
         }
     }
 }
@@ -465,7 +470,7 @@ impl Validator<'_> {
             )),
         };
         let check = |key: &str, v: f64| {
-            let [lo, hi] = PROGRESS_FACTOR;
+            let [lo, hi] = PROGRESS_FACTOR_RANGE;
             if v.is_finite() && (lo..=hi).contains(&v) {
                 Ok(quantize(v))
             } else {
@@ -496,21 +501,13 @@ impl Validator<'_> {
                             format!("{gait} is not in grid.gaits; give factors of its gaits only"),
                         ));
                     }
-                    match gait {
-                        Gait::Trot => out.trot = v,
-                        Gait::Walk => out.walk = v,
-                        Gait::Free => out.free = v,
-                    }
+                    out.set(gait, v);
                 }
             }
             Some(value) => {
                 let v = check(KEY, number(KEY, value)?)?;
                 for &gait in gaits {
-                    match gait {
-                        Gait::Trot => out.trot = v,
-                        Gait::Walk => out.walk = v,
-                        Gait::Free => out.free = v,
-                    }
+                    out.set(gait, v);
                 }
             }
         }

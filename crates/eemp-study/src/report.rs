@@ -255,8 +255,9 @@ pub fn write_tables(
         let Ok(existing) = eemp_core::planner::params_table::ParamsTable::load(&path) else {
             continue; // absent or not a table: nothing to protect
         };
-        let default = eemp_core::planner::PlannerConfig::default().progress_factor;
-        let theirs = existing.progress_factor.unwrap_or(default);
+        let theirs = existing
+            .progress_factor
+            .unwrap_or(eemp_core::planner::PAPER_PROGRESS_FACTOR);
         let ours = grid.progress_factor.get(gait);
         if theirs != ours {
             return Err(StudyError::Results {
@@ -591,7 +592,7 @@ pub fn build(input: ReportInput) -> Document {
                 num(c.mean_cot(), 3),
                 num(c.mean_score, 3),
                 list(&speeds_of(&c.per_speed)),
-                opt(gs.improvement_pct, 1) + " %",
+                opt(gs.improvement.as_ref().map(|i| i.pct), 1) + " %",
             ],
             None => {
                 let mut r = vec![gs.gait.to_string()];
@@ -652,7 +653,7 @@ pub fn build(input: ReportInput) -> Document {
 
     b.push(Block::Heading(1, "Paper vs this project".into()));
     b.push(paper_table(study));
-    let default_factor = eemp_core::planner::PlannerConfig::default().progress_factor;
+    let default_factor = eemp_core::planner::PAPER_PROGRESS_FACTOR;
     let own_factor: Vec<String> = g
         .gaits
         .iter()
@@ -740,11 +741,9 @@ fn speeds_of(points: &[Scored]) -> Vec<f64> {
 fn paper_table(study: &Study) -> Block {
     let improvement = |gait: Gait| {
         study.gait(gait).map_or("gait not in the grid".into(), |g| {
-            let over = g
-                .constant
+            g.improvement
                 .as_ref()
-                .and_then(|c| g.improvement_over(|v| c.at(v)));
-            over.map_or("– (no best constant)".into(), |i| improvement_text(&i))
+                .map_or("– (no best constant)".into(), improvement_text)
         })
     };
     let ratio = study

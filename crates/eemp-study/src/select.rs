@@ -347,8 +347,8 @@ pub struct GaitStudy {
     pub speeds: Vec<SpeedChoice>,
     /// Over the stable range: the table's speeds below `instability` (module docs, step 5).
     pub constant: Option<BestConstant>,
-    /// The table's improvement over `constant`, % ([`GaitStudy::improvement_over`]).
-    pub improvement_pct: Option<f64>,
+    /// The table's improvement over `constant` ([`GaitStudy::improvement_over`]).
+    pub improvement: Option<Improvement>,
     /// The lowest speed where the gait fails (see [`InstabilityReason`]); `None` if it works
     /// at every speed.
     pub instability: Option<Instability>,
@@ -637,7 +637,7 @@ fn study_gait(gait: Gait, points: &[&PointSummary], sel: &SelectionConfig) -> Ga
         gait,
         speeds,
         constant: None,
-        improvement_pct: None,
+        improvement: None,
         instability,
     };
     let stable: Vec<&SpeedChoice> = study
@@ -646,10 +646,9 @@ fn study_gait(gait: Gait, points: &[&PointSummary], sel: &SelectionConfig) -> Ga
         .filter(|s| study.is_stable(s.speed_mps))
         .collect();
     let constant = best_constant(points, &stable, sel);
-    study.improvement_pct = constant
+    study.improvement = constant
         .as_ref()
-        .and_then(|c| study.improvement_over(|v| c.at(v)))
-        .map(|i| i.pct);
+        .and_then(|c| study.improvement_over(|v| c.at(v)));
     study.constant = constant;
     study
 }
@@ -930,7 +929,7 @@ mod tests {
         assert_eq!(c.params, params(0.25));
         assert!((c.mean_score - 0.67).abs() < 1e-12);
         assert!((c.mean_cot() - 0.70).abs() < 1e-12);
-        assert!((t.improvement_pct.unwrap() - 15.0).abs() < 1e-9);
+        assert!((t.improvement.as_ref().unwrap().pct - 15.0).abs() < 1e-9);
         assert_eq!(t.instability, None);
         // The table carries the selecting metrics and survives a TOML round trip.
         let table = t.table(Interpolation::Nearest).unwrap().unwrap();
@@ -985,7 +984,7 @@ mod tests {
         let c = w.constant.unwrap();
         assert_eq!(c.params, p1, "p2's survival at 0.7 m/s does not count");
         assert_eq!(c.per_speed.len(), 2);
-        assert_eq!(w.improvement_pct, Some(0.0));
+        assert_eq!(w.improvement.as_ref().map(|i| i.pct), Some(0.0));
     }
 
     #[test]
@@ -999,7 +998,7 @@ mod tests {
         ];
         let t = Study::analyse(&rows, SEL).gaits.remove(0);
         assert_eq!(t.best().count(), 2);
-        assert_eq!((t.constant, t.improvement_pct), (None, None));
+        assert_eq!((t.constant, t.improvement), (None, None));
     }
 
     #[test]
@@ -1236,14 +1235,14 @@ mod tests {
         let c = w.constant.as_ref().unwrap();
         assert_eq!(c.params, p1);
         let expected = 100.0 * (0.08 / 0.48) / 2.0;
-        assert!((w.improvement_pct.unwrap() - expected).abs() < 1e-9);
+        assert!((w.improvement.as_ref().unwrap().pct - expected).abs() < 1e-9);
         // The same parameters as "fixed" give the same number: 0.7 m/s is left out although
         // both are selectable there.
         let fixed = study.fixed_params(Gait::Walk, &p1).unwrap();
         assert_eq!(fixed.selectable(), 3);
         let i = fixed.improvement(w).unwrap();
         assert_eq!(i.speeds_mps, vec![0.1, 0.3]);
-        assert!((i.pct - w.improvement_pct.unwrap()).abs() < 1e-12);
+        assert!((i.pct - w.improvement.as_ref().unwrap().pct).abs() < 1e-12);
         assert_eq!(cot_saving(0.5, 0.4), (0.5 - 0.4) / 0.5);
     }
 

@@ -26,6 +26,12 @@ pub use params::PlannerParams;
 use serde::{Deserialize, Serialize};
 pub use swing_trajectory::SwingTrajectory;
 
+/// Eq. (6)'s factor on V_des·ΔT as the paper's text prints it (its Algorithm 1 uses 1).
+pub const PAPER_PROGRESS_FACTOR: f64 = 0.5;
+
+/// Allowed [`PlannerConfig::progress_factor`] (also for a sweep's and a table's factor).
+pub const PROGRESS_FACTOR_RANGE: [f64; 2] = [0.0, 2.0];
+
 /// Settings of the planner other than the five tuned parameters.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -59,7 +65,7 @@ impl Default for PlannerConfig {
     fn default() -> Self {
         PlannerConfig {
             gait: Gait::Trot,
-            progress_factor: 0.5,
+            progress_factor: PAPER_PROGRESS_FACTOR,
             max_accel_mps2: 0.5,
             retarget_swing: true,
             preview_swings: true,
@@ -69,7 +75,8 @@ impl Default for PlannerConfig {
 
 impl PlannerConfig {
     pub fn validate(&self) -> Result<(), ConfigError> {
-        check_range("planner.progress_factor", self.progress_factor, 0.0, 2.0)?;
+        let [lo, hi] = PROGRESS_FACTOR_RANGE;
+        check_range("planner.progress_factor", self.progress_factor, lo, hi)?;
         check_range("planner.max_accel_mps2", self.max_accel_mps2, 0.05, 20.0)
     }
 }

@@ -119,7 +119,8 @@ impl ParamsTable {
 
     pub fn validate(&self) -> Result<(), ConfigError> {
         if let Some(f) = self.progress_factor {
-            check_range("progress_factor", f, 0.0, 2.0)?;
+            let [lo, hi] = super::PROGRESS_FACTOR_RANGE;
+            check_range("progress_factor", f, lo, hi)?;
         }
         if self.entries.is_empty() {
             return Err(ConfigError::Invalid {
