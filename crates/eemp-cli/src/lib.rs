@@ -1,8 +1,10 @@
 //! Library side of the `eemp` command: plotting helpers shared by its subcommands.
 pub mod bench;
+pub mod bench_rl;
 pub mod output;
 pub mod plots;
 pub mod stand_cmd;
 pub mod sweep_cmd;
 pub mod sweep_report;
+pub mod train_cmd;
 pub mod walk_cmd;

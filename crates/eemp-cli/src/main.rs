@@ -1,7 +1,7 @@
 //! `eemp`: the energy-efficient motion planner on a simulated Unitree A1.
 
 use clap::{Parser, Subcommand};
-use eemp_cli::{stand_cmd, sweep_cmd, walk_cmd};
+use eemp_cli::{stand_cmd, sweep_cmd, train_cmd, walk_cmd};
 
 #[derive(Parser)]
 #[command(
@@ -23,6 +23,8 @@ enum Command {
     /// Parameter study (EEMP-Analytical): run a grid of walks (resumable, shardable), merge
     /// shards, report the best parameters per speed.
     Sweep(sweep_cmd::SweepArgs),
+    /// Train a learned controller with PPO (resumable); policy, log and curves in --out.
+    Train(train_cmd::TrainArgs),
     /// Benchmarks.
     Bench {
         #[command(subcommand)]
@@ -44,6 +46,24 @@ enum BenchCommand {
         #[arg(long, default_value_t = 300)]
         solves: usize,
     },
+    /// Time the learned-controller pipeline: env stepping (1 thread, all), training, bare MuJoCo.
+    Rl {
+        /// Environments (as many as the shipped training config).
+        #[arg(long, default_value_t = 256)]
+        envs: usize,
+        /// Policy steps per environment in each stepping measurement.
+        #[arg(long, default_value_t = 30)]
+        steps: usize,
+        /// PPO iterations in the training measurement.
+        #[arg(long, default_value_t = 3)]
+        train_iterations: usize,
+        /// Threads (default: all cores).
+        #[arg(long)]
+        threads: Option<usize>,
+        /// Hidden layer widths of actor and critic, e.g. 128,128.
+        #[arg(long, value_delimiter = ',', default_value = "128,128")]
+        hidden: Vec<usize>,
+    },
 }
 
 fn main() {
@@ -52,6 +72,7 @@ fn main() {
         Command::Stand(args) => stand_cmd::run(&args),
         Command::Walk(args) => walk_cmd::run(&args),
         Command::Sweep(args) => sweep_cmd::run(&args),
+        Command::Train(args) => train_cmd::run(&args),
         Command::Bench {
             what: BenchCommand::Mpc { solves },
         } => {
@@ -64,6 +85,30 @@ fn main() {
             println!("{}", report.json_line());
             Ok(())
         }
+        Command::Bench {
+            what:
+                BenchCommand::Rl {
+                    envs,
+                    steps,
+                    train_iterations,
+                    threads,
+                    hidden,
+                },
+        } => eemp_cli::bench_rl::bench_rl(&eemp_cli::bench_rl::RlBenchOptions {
+            num_envs: envs,
+            steps,
+            train_iterations,
+            hidden,
+            threads: threads.unwrap_or_else(|| {
+                std::thread::available_parallelism()
+                    .map(|n| n.get())
+                    .unwrap_or(1)
+            }),
+        })
+        .map(|r| {
+            println!("{}", r.table());
+            println!("{}", r.json_line());
+        }),
         Command::Model { robot } => (|| {
             let robot = match robot {
                 Some(p) => eemp_core::robot::RobotConfig::load(&p).map_err(|e| e.to_string())?,

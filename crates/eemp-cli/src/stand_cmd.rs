@@ -128,7 +128,7 @@ pub fn run(args: &StandArgs) -> Result<(), String> {
     let run = run_stand(&robot, controller, profile, args.duration, &pushes, |r| {
         let s = &r.state.body;
         let rpy = s.rpy();
-        let rf = &r.plan.body_now;
+        let rf = &r.plan.expect("the stand controller always plans").body_now;
         let mut row = vec![
             r.state.time_s,
             s.p_world.x,

@@ -8,7 +8,7 @@ use eemp_core::metrics::positive_power_w;
 use eemp_core::planner::{Gait, PlannerConfig, PlannerParams, VelocityCommand};
 use eemp_core::robot::RobotConfig;
 use eemp_sim::closed_loop::Push;
-use eemp_sim::walk::{run_walk, VelocityProfile, WalkSpec};
+use eemp_sim::walk::{run_walk, run_walk_with, StartPose, VelocityProfile, WalkSpec};
 use nalgebra::Vector3;
 use std::path::PathBuf;
 
@@ -16,7 +16,14 @@ use std::path::PathBuf;
 // `--speed -0.3` is a backward command and `--duration -1` must reach the range check.
 #[command(allow_negative_numbers = true)]
 pub struct WalkArgs {
-    /// trot, walk or free (no predetermined order).
+    /// Who drives the robot: eemp (planner + MPC + swing law) or model-free (a trained policy,
+    /// --policy). Both run the same scenario, metrics and outputs.
+    #[arg(long, default_value = "eemp")]
+    pub controller: String,
+    /// Policy file for a learned --controller (e.g. policies/a1_model_free.safetensors).
+    #[arg(long)]
+    pub policy: Option<PathBuf>,
+    /// trot, walk or free (no predetermined order). EEMP only.
     #[arg(long, default_value = "trot")]
     pub gait: String,
     /// Forward speed command, m/s (heading frame). Ignored with --profile.
@@ -80,8 +87,33 @@ pub struct WalkArgs {
     pub out: PathBuf,
 }
 
+/// Which controller a walk runs.
+enum Driver {
+    Eemp,
+    ModelFree(Box<eemp_rl::policy::Policy>),
+}
+
 pub fn run(args: &WalkArgs) -> Result<(), String> {
     let gait: Gait = args.gait.parse()?;
+    let driver = match (args.controller.as_str(), &args.policy) {
+        ("eemp", None) => Driver::Eemp,
+        ("eemp", Some(_)) => {
+            return Err("--policy is for a learned --controller (model-free), not eemp".into())
+        }
+        ("model-free", Some(p)) => Driver::ModelFree(Box::new(eemp_rl::policy::Policy::load(
+            p,
+            Some(eemp_rl::config::TaskKind::ModelFree),
+        )?)),
+        ("model-free", None) => return Err(
+            "--controller model-free needs --policy FILE (e.g. policies/a1_model_free.safetensors)"
+                .into(),
+        ),
+        (other, _) => {
+            return Err(format!(
+                "unknown --controller '{other}': allowed eemp, model-free"
+            ))
+        }
+    };
     if !(args.duration.is_finite() && args.duration > 0.0 && args.duration <= 3600.0) {
         return Err(format!(
             "--duration {} is out of range: allowed (0, 3600] s",
@@ -201,7 +233,7 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
     let mut foot_z: [Vec<f64>; 4] = Default::default();
     let mut stance: Vec<[bool; 4]> = Vec::new();
     let mut i = 0usize;
-    let run = run_walk(&robot, &spec, |r| {
+    let observer = |r: &eemp_sim::closed_loop::StepRecord| {
         let s = &r.state.body;
         let rpy = s.rpy();
         let v = s.v_heading();
@@ -225,13 +257,17 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
         ];
         for leg in Leg::ALL {
             let f = r.feet_world[leg];
-            let z_ref = r.plan.swing[leg].map(|sw| sw.p_body.z).unwrap_or(f64::NAN);
+            let z_ref = r
+                .plan
+                .and_then(|p| p.swing[leg])
+                .map(|sw| sw.p_body.z)
+                .unwrap_or(f64::NAN);
             row.extend([
                 f.x,
                 f.y,
                 f.z,
                 z_ref,
-                r.plan.stance[leg] as u8 as f64,
+                r.stance()[leg] as u8 as f64,
                 r.contacts[leg] as u8 as f64,
             ]);
             row.extend(r.output.torques[leg].iter());
@@ -252,11 +288,33 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
             for leg in Leg::ALL {
                 foot_z[leg.index()].push(r.feet_world[leg].z);
             }
-            stance.push(r.plan.stance.0);
+            stance.push(r.stance().0);
         }
         i += 1;
-    })
-    .map_err(|e| e.to_string())?;
+    };
+    let (run, method) = match driver {
+        Driver::Eemp => (
+            run_walk(&robot, &spec, observer).map_err(|e| e.to_string())?,
+            format!("EEMP ({gait})"),
+        ),
+        Driver::ModelFree(policy) => {
+            let mut c = eemp_rl::controller::PolicyController::new(
+                *policy,
+                &robot,
+                robot.simulation.timestep_s,
+            )?;
+            let start = StartPose::from_joints(&robot, c.default_pose());
+            let run = run_walk_with(&robot, &spec, &start, &mut c, observer)
+                .map_err(|e| e.to_string())?;
+            if c.invalid_steps > 0 {
+                eprintln!(
+                    "warning: {} policy steps had a non-finite observation or action (targets held)",
+                    c.invalid_steps
+                );
+            }
+            (run, "model-free RL".to_string())
+        }
+    };
     if let Some(e) = write_error {
         return Err(e.to_string());
     }
@@ -265,7 +323,9 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
     let st = &run.stats;
     let total = st.wall_time_s.max(1e-12);
     let summary = serde_json::json!({
-        "gait": gait.to_string(),
+        "controller": args.controller,
+        "policy": args.policy.as_ref().map(|p| p.display().to_string()),
+        "gait": if args.controller == "eemp" { Some(gait.to_string()) } else { None },
         "speed_mps": args.speed,
         "profile": args.profile.as_ref().map(|p| p.display().to_string()),
         "params": params,
@@ -355,13 +415,13 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
     ];
     line_panels(
         &args.out.join("velocity_and_feet.png"),
-        &format!("A1 under EEMP ({gait}): velocity tracking and foot heights"),
+        &format!("A1 under {method}: velocity tracking and foot heights"),
         &panels,
     )
     .map_err(|e| e.to_string())?;
     gait_diagram(
         &args.out.join("gait.png"),
-        &format!("Gait diagram ({gait}, {} m/s)", args.speed),
+        &format!("Gait diagram ({method}, {} m/s)", args.speed),
         &t,
         &stance,
         ["FR", "FL", "RR", "RL"],

@@ -94,3 +94,67 @@ fn a_negative_speed_is_a_backward_command_not_an_option() {
     assert!(wrote && dir.join("out/summary.json").exists());
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn bad_training_and_policy_input_exits_2_names_the_file_and_writes_nothing() {
+    let dir = scratch("train");
+    let bad_config = dir.join("train.toml");
+    std::fs::write(&bad_config, "task = \"model-free\"\n[ppo]\nclip = 3.0\n").unwrap();
+    let cart_config = dir.join("cart.toml");
+    std::fs::write(&cart_config, "task = \"cart-pole\"\n").unwrap();
+    let not_a_policy = dir.join("policy.safetensors");
+    std::fs::write(&not_a_policy, b"junk").unwrap();
+    let missing = dir.join("missing.safetensors");
+    let (bad_config, cart_config, not_a_policy, missing) = (
+        bad_config.to_str().unwrap(),
+        cart_config.to_str().unwrap(),
+        not_a_policy.to_str().unwrap(),
+        missing.to_str().unwrap(),
+    );
+    let cases: [(&[&str], &[&str]); 8] = [
+        (
+            &["train", "--task", "dance"],
+            &["dance", "model-free, cart-pole"],
+        ),
+        (
+            &["train", "--task", "model-free", "--config", bad_config],
+            &["train.toml", "ppo.clip", "[0.01, 1]"],
+        ),
+        (
+            &["train", "--task", "model-free", "--config", cart_config],
+            &["cart.toml", "cart-pole"],
+        ),
+        (
+            &["train", "--task", "model-free", "--threads", "0"],
+            &["--threads 0"],
+        ),
+        (
+            &["walk", "--controller", "model-free", "--policy", missing],
+            &["missing.safetensors"],
+        ),
+        (
+            &[
+                "walk",
+                "--controller",
+                "model-free",
+                "--policy",
+                not_a_policy,
+            ],
+            &["policy.safetensors", "safetensors"],
+        ),
+        (&["walk", "--controller", "model-free"], &["--policy"]),
+        (
+            &["walk", "--controller", "mpc"],
+            &["mpc", "eemp, model-free"],
+        ),
+    ];
+    for (args, needles) in cases {
+        let (code, stderr, wrote) = eemp(&dir, args);
+        assert_eq!(code, Some(2), "{args:?}: {stderr}");
+        for n in needles {
+            assert!(stderr.contains(n), "{args:?}: '{n}' not in: {stderr}");
+        }
+        assert!(!wrote, "{args:?} wrote its output folder");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}

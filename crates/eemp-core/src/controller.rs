@@ -118,7 +118,7 @@ impl LocomotionController {
         clock_s: f64,
         state: &RobotState,
         plan: &Plan,
-        dynamics: &impl DynamicsModel,
+        dynamics: &dyn DynamicsModel,
     ) -> ControlOutput {
         let due = match self.last_solve_time_s {
             None => true,
@@ -164,7 +164,7 @@ impl LocomotionController {
         leg: Leg,
         state: &RobotState,
         plan: &Plan,
-        dynamics: &impl DynamicsModel,
+        dynamics: &dyn DynamicsModel,
     ) -> Vector3<f64> {
         let joints = &state.joints[leg];
         let jacobian = self.kinematics.foot_jacobian_body(leg, &joints.q);

@@ -4,6 +4,8 @@
 //! - [`convex_mpc`]: stance control, the paper's eq. (2).
 //! - [`leg_control`]: swing control, eq. (1), and the stance torque map.
 //! - [`planner`]: the energy-efficient planner, eqs. (5)–(7) and Algorithm 1.
+//! - [`control`]: the [`control::Controller`] interface every controller implements;
+//!   [`eemp_controller`] (EEMP walking and standing), [`joint_pd`] (joint PD, how policies act).
 //! - [`metrics`]: cost of transport (eq. 8) and force manipulability (eq. 9).
 
 // Horizon and block indices (k, l, j) are the mathematics here; iterator chains would hide them.
@@ -12,8 +14,11 @@
 pub mod body_reference;
 pub mod body_state;
 pub mod config_error;
+pub mod control;
 pub mod controller;
 pub mod convex_mpc;
+pub mod eemp_controller;
+pub mod joint_pd;
 pub mod kinematics;
 pub mod leg;
 pub mod leg_control;

@@ -7,6 +7,7 @@
 
 use crate::mjcf::{foot_geom_name, robot_mjcf, SceneExtras};
 use eemp_core::body_state::{BodyState, LegJointState, RobotState};
+use eemp_core::kinematics::LegKinematics;
 use eemp_core::leg::{Leg, LegMap};
 use eemp_core::leg_control::{DynamicsModel, LegDynamics};
 use eemp_core::robot::RobotConfig;
@@ -24,14 +25,26 @@ pub enum SimError {
     Pose(String),
 }
 
+/// A simulation's dynamic state (see [`Simulation::snapshot`]).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct SimSnapshot {
+    pub time_s: f64,
+    pub qpos: Vec<f64>,
+    pub qvel: Vec<f64>,
+    pub qacc_warmstart: Vec<f64>,
+    pub ctrl: Vec<f64>,
+}
+
 /// Indices into MuJoCo's arrays, resolved once from names.
 #[derive(Clone, Debug)]
 struct Handles {
     trunk_body: usize,
+    trunk_geom: usize,
     floor_geom: usize,
     foot_geom: LegMap<usize>,
     foot_site: LegMap<usize>,
     calf_body: LegMap<usize>,
+    thigh_body: LegMap<usize>,
     /// First qpos / qvel index of each leg's three joints, and its first actuator.
     qpos_adr: LegMap<usize>,
     dof_adr: LegMap<usize>,
@@ -40,12 +53,20 @@ struct Handles {
 
 pub struct Simulation {
     data: MjData<Arc<MjModel>>,
+    kinematics: LegKinematics,
     handles: Handles,
     nv: usize,
     mass_matrix: Vec<f64>,
     torque_limit_nm: f64,
     total_mass_kg: f64,
     foot_radius_m: f64,
+}
+
+/// Compiles the MuJoCo model of `robot` on a flat floor plus `extras`.
+pub fn build_model(robot: &RobotConfig, extras: &SceneExtras) -> Result<Arc<MjModel>, SimError> {
+    let xml = robot_mjcf(robot, extras);
+    let model = MjModel::from_xml_string(&xml).map_err(|e| SimError::Model(e.to_string()))?;
+    Ok(Arc::new(model))
 }
 
 fn id(
@@ -65,15 +86,20 @@ fn id(
 impl Simulation {
     /// Builds the robot's model (flat floor plus `extras`) and its data.
     pub fn new(robot: &RobotConfig, extras: &SceneExtras) -> Result<Self, SimError> {
-        let xml = robot_mjcf(robot, extras);
-        let model = MjModel::from_xml_string(&xml).map_err(|e| SimError::Model(e.to_string()))?;
-        let model = Arc::new(model);
+        Self::with_model(build_model(robot, extras)?, robot)
+    }
+
+    /// A simulation with its own data on a shared model (vectorised environments: one model,
+    /// N datas). `robot` must be the config the model was built from.
+    pub fn with_model(model: Arc<MjModel>, robot: &RobotConfig) -> Result<Self, SimError> {
         let m: &MjModel = &model;
         let trunk_body = id(m, MjtObjBase::mjOBJ_BODY, "body", "trunk")?;
         let floor_geom = id(m, MjtObjBase::mjOBJ_GEOM, "geom", "floor")?;
+        let trunk_geom = id(m, MjtObjBase::mjOBJ_GEOM, "geom", "trunk_geom")?;
         let mut foot_geom = LegMap::splat(0);
         let mut foot_site = LegMap::splat(0);
         let mut calf_body = LegMap::splat(0);
+        let mut thigh_body = LegMap::splat(0);
         let mut qpos_adr = LegMap::splat(0);
         let mut dof_adr = LegMap::splat(0);
         let mut actuator = LegMap::splat(0);
@@ -82,6 +108,7 @@ impl Simulation {
             foot_geom[leg] = id(m, MjtObjBase::mjOBJ_GEOM, "geom", &foot_geom_name(leg))?;
             foot_site[leg] = id(m, MjtObjBase::mjOBJ_SITE, "site", &format!("{n}_foot_site"))?;
             calf_body[leg] = id(m, MjtObjBase::mjOBJ_BODY, "body", &format!("{n}_calf"))?;
+            thigh_body[leg] = id(m, MjtObjBase::mjOBJ_BODY, "body", &format!("{n}_thigh"))?;
             let joint = id(
                 m,
                 MjtObjBase::mjOBJ_JOINT,
@@ -113,12 +140,15 @@ impl Simulation {
         let data = MjData::new(model.clone());
         Ok(Simulation {
             data,
+            kinematics: LegKinematics::new(robot),
             handles: Handles {
                 trunk_body,
+                trunk_geom,
                 floor_geom,
                 foot_geom,
                 foot_site,
                 calf_body,
+                thigh_body,
                 qpos_adr,
                 dof_adr,
                 actuator,
@@ -176,6 +206,22 @@ impl Simulation {
         self.data
             .full_m(&mut self.mass_matrix)
             .expect("buffer is nv×nv");
+    }
+
+    /// Computes kinematics and contacts only (mj_step1 without the dense mass matrix), for
+    /// controllers that do not use the dynamics (joint PD, learned policies).
+    pub fn prepare_kinematics(&mut self) {
+        self.data.step1();
+    }
+
+    /// The robot's leg kinematics (the same numbers the model was generated from).
+    pub fn kinematics(&self) -> &LegKinematics {
+        &self.kinematics
+    }
+
+    /// The shared model (a cheap handle).
+    pub fn model(&self) -> Arc<MjModel> {
+        self.data.model_clone()
     }
 
     /// Applies joint torques (clamped to the motor limit by MuJoCo's ctrlrange) and integrates
@@ -252,7 +298,24 @@ impl Simulation {
         Matrix3::from_fn(|i, j| jacp[i * self.nv + d + j])
     }
 
-    /// Which feet touch the floor (or any terrain geom) now, from MuJoCo's contact list.
+    /// Normal force the ground exerts on each foot, N, from the last constraint solve (valid
+    /// after [`Simulation::advance`] or [`Simulation::step_bare`]).
+    pub fn foot_normal_forces_n(&self) -> LegMap<f64> {
+        let mut f = LegMap::splat(0.0);
+        for (i, c) in self.data.contact().iter().enumerate() {
+            for leg in Leg::ALL {
+                let g = self.handles.foot_geom[leg] as i32;
+                if c.geom[0] == g || c.geom[1] == g {
+                    f[leg] += self.data.contact_force(i)[0].abs();
+                }
+            }
+        }
+        f
+    }
+
+    /// Which feet touch the floor (or any terrain geom) now, from MuJoCo's contact list. With
+    /// the model's soft contacts a foot can touch with almost no load (see
+    /// [`Simulation::foot_normal_forces_n`] for whether it carries the robot).
     pub fn foot_contacts(&self) -> LegMap<bool> {
         let mut touching = LegMap::splat(false);
         for c in self.data.contact() {
@@ -264,6 +327,91 @@ impl Simulation {
             }
         }
         touching
+    }
+
+    /// Contacts between the floor and the legs away from the feet: any thigh contact, and calf
+    /// contacts more than `near_foot_m` from that leg's foot centre (a knee on the ground). The
+    /// lower calf touching next to a foot that sinks into the soft floor is not counted: with
+    /// the model's contact softness it happens in normal stance. This is the "collision" a
+    /// learned controller is penalised for (the model has no leg–leg contacts).
+    pub fn leg_ground_contacts(&self, near_foot_m: f64) -> usize {
+        let floor = self.handles.floor_geom as i32;
+        let model = self.data.model();
+        let geom_body = model.geom_bodyid();
+        let mut n = 0;
+        for c in self.data.contact() {
+            let other = if c.geom[0] == floor {
+                c.geom[1]
+            } else if c.geom[1] == floor {
+                c.geom[0]
+            } else {
+                continue;
+            };
+            if other < 0
+                || Leg::ALL
+                    .iter()
+                    .any(|l| self.handles.foot_geom[*l] as i32 == other)
+            {
+                continue;
+            }
+            let body = geom_body[other as usize] as usize;
+            for leg in Leg::ALL {
+                if body == self.handles.calf_body[leg] {
+                    let foot = Vector3::from(self.data.site_xpos()[self.handles.foot_site[leg]]);
+                    if (Vector3::from(c.pos) - foot).norm() > near_foot_m {
+                        n += 1;
+                    }
+                } else if body == self.handles.thigh_body[leg] {
+                    n += 1;
+                }
+            }
+        }
+        n
+    }
+
+    /// Whether the trunk touches the ground (a fall for learned controllers, as in legged_gym).
+    pub fn trunk_contact(&self) -> bool {
+        let (floor, trunk) = (
+            self.handles.floor_geom as i32,
+            self.handles.trunk_geom as i32,
+        );
+        self.data.contact().iter().any(|c| {
+            (c.geom[0] == floor && c.geom[1] == trunk) || (c.geom[1] == floor && c.geom[0] == trunk)
+        })
+    }
+
+    /// Everything MuJoCo needs to continue bit for bit from here (checkpoints of training).
+    pub fn snapshot(&self) -> SimSnapshot {
+        SimSnapshot {
+            time_s: self.time_s(),
+            qpos: self.data.qpos().to_vec(),
+            qvel: self.data.qvel().to_vec(),
+            qacc_warmstart: self.data.qacc_warmstart().to_vec(),
+            ctrl: self.data.ctrl().to_vec(),
+        }
+    }
+
+    /// Restores a [`Simulation::snapshot`] of a simulation of the same model.
+    pub fn restore(&mut self, s: &SimSnapshot) -> Result<(), SimError> {
+        if s.qpos.len() != self.data.qpos().len()
+            || s.qvel.len() != self.nv
+            || s.qacc_warmstart.len() != self.nv
+            || s.ctrl.len() != self.data.ctrl().len()
+        {
+            return Err(SimError::Pose(
+                "snapshot is of a model with other dimensions".into(),
+            ));
+        }
+        self.data.qpos_mut().copy_from_slice(&s.qpos);
+        self.data.qvel_mut().copy_from_slice(&s.qvel);
+        self.data
+            .qacc_warmstart_mut()
+            .copy_from_slice(&s.qacc_warmstart);
+        self.data.ctrl_mut().copy_from_slice(&s.ctrl);
+        // SAFETY: plain field write on the data this simulation owns.
+        unsafe { self.data.ffi_mut().time = s.time_s };
+        self.data.forward();
+        Ok(())
     }
 
     /// Applies a force (N, world frame) at the trunk's centre of mass until changed.

@@ -3,8 +3,10 @@
 
 use crate::backend::Simulation;
 use eemp_core::body_state::RobotState;
-use eemp_core::controller::{feet_world, ControlOutput, LocomotionController, Plan};
+use eemp_core::control::{ControlInput, Controller};
+use eemp_core::controller::{feet_world, ControlOutput, Plan};
 use eemp_core::leg::LegMap;
+use eemp_core::planner::VelocityCommand;
 use nalgebra::Vector3;
 use std::time::Instant;
 
@@ -48,11 +50,27 @@ impl FallLimits {
 /// Everything about one control step, for observers (metrics, traces).
 pub struct StepRecord<'a> {
     pub state: &'a RobotState,
-    pub plan: &'a Plan,
+    /// The controller's plan, when it has one (EEMP does, a learned policy does not).
+    pub plan: Option<&'a Plan>,
+    pub command: VelocityCommand,
     pub output: &'a ControlOutput,
     pub feet_world: &'a LegMap<Vector3<f64>>,
     /// Feet touching the ground according to the simulator.
     pub contacts: LegMap<bool>,
+    /// Feet carrying more than [`LOADED_FOOT_N`] (from the previous step's contact solve).
+    pub loaded: LegMap<bool>,
+}
+
+/// A foot counts as carrying the robot above this normal force, N. The floor's contacts are
+/// soft (the feet sink ~17 mm standing), so a foot can stay "in contact" through a swing with
+/// a few newtons; a stance foot of the 12.5 kg A1 carries 30–60 N.
+pub const LOADED_FOOT_N: f64 = 5.0;
+
+impl StepRecord<'_> {
+    /// Legs carrying the robot: the plan's stance set, or the loaded feet without a plan.
+    pub fn stance(&self) -> LegMap<bool> {
+        self.plan.map(|p| p.stance).unwrap_or(self.loaded)
+    }
 }
 
 /// Wall time spent per stage, s.
@@ -105,44 +123,113 @@ pub fn percentile(values: &[f64], p: f64) -> f64 {
     v[idx.min(v.len() - 1)]
 }
 
-/// Runs the loop for `duration_s` of simulated time or until a fall.
-/// `planner` maps (state, measured foot positions) to a plan; `observer` sees every step.
-pub fn run_closed_loop(
-    sim: &mut Simulation,
-    controller: &mut LocomotionController,
-    duration_s: f64,
-    pushes: &[Push],
+/// The closed loop as an episode object: every scenario (stand, walk), sweep, learned-controller
+/// environment and evaluation steps the robot through [`ClosedLoop::step`].
+pub struct ClosedLoop {
+    sim: Simulation,
+    pending: Vec<Push>,
     limits: FallLimits,
-    mut planner: impl FnMut(&RobotState, &LegMap<Vector3<f64>>) -> Plan,
-    mut observer: impl FnMut(&StepRecord),
-) -> LoopStats {
-    let mut stats = LoopStats::default();
-    let dt = sim.timestep_s();
-    let steps = (duration_s / dt).round() as usize;
-    let t_start = sim.time_s();
-    let mut pending: Vec<Push> = pushes.to_vec();
-    let wall = Instant::now();
-    for _ in 0..steps {
+    stats: LoopStats,
+    t_start: f64,
+    wall_start: Instant,
+    loaded: LegMap<bool>,
+}
+
+/// What one step of the loop ended in.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StepOutcome {
+    /// The state at the start of the step counts as fallen (the episode is over).
+    pub fell: bool,
+}
+
+impl ClosedLoop {
+    /// Starts an episode from the simulation's current state.
+    pub fn new(sim: Simulation, pushes: &[Push], limits: FallLimits) -> Self {
+        let t_start = sim.time_s();
+        ClosedLoop {
+            sim,
+            pending: pushes.to_vec(),
+            limits,
+            stats: LoopStats::default(),
+            t_start,
+            wall_start: Instant::now(),
+            // Episodes start standing.
+            loaded: LegMap::splat(true),
+        }
+    }
+
+    /// Starts a new episode on the same simulation (the caller has reset its state).
+    pub fn restart(&mut self, pushes: &[Push]) {
+        self.pending = pushes.to_vec();
+        self.stats = LoopStats::default();
+        self.t_start = self.sim.time_s();
+        self.wall_start = Instant::now();
+        self.loaded = LegMap::splat(true);
+    }
+
+    /// Feet carrying more than [`LOADED_FOOT_N`] after the last step.
+    pub fn loaded(&self) -> LegMap<bool> {
+        self.loaded
+    }
+
+    pub fn sim(&self) -> &Simulation {
+        &self.sim
+    }
+
+    pub fn sim_mut(&mut self) -> &mut Simulation {
+        &mut self.sim
+    }
+
+    pub fn stats(&self) -> &LoopStats {
+        &self.stats
+    }
+
+    /// Episode time, s.
+    pub fn elapsed_s(&self) -> f64 {
+        self.sim.time_s() - self.t_start
+    }
+
+    /// One physics step: state → controller → observer → torques → physics → pushes.
+    /// After a fall the step is still taken; the caller ends the episode.
+    pub fn step(
+        &mut self,
+        controller: &mut dyn Controller,
+        command: VelocityCommand,
+        observer: &mut dyn FnMut(&StepRecord),
+    ) -> StepOutcome {
         let t0 = Instant::now();
-        sim.prepare();
-        let state = sim.ground_truth_state();
+        if controller.needs_dynamics() {
+            self.sim.prepare();
+        } else {
+            self.sim.prepare_kinematics();
+        }
+        let state = self.sim.ground_truth_state();
         let t1 = Instant::now();
-        let feet = feet_world(controller.kinematics(), &state);
-        let plan = planner(&state, &feet);
+        let feet = feet_world(self.sim.kinematics(), &state);
         let t2 = Instant::now();
-        let output = controller.update(state.time_s, &state, &plan, sim);
+        let output = controller.control(&ControlInput {
+            state: &state,
+            feet_world: &feet,
+            command,
+            dynamics: &self.sim,
+        });
         let t3 = Instant::now();
         observer(&StepRecord {
             state: &state,
-            plan: &plan,
+            plan: controller.plan(),
+            command,
             output: &output,
             feet_world: &feet,
-            contacts: sim.foot_contacts(),
+            contacts: self.sim.foot_contacts(),
+            loaded: self.loaded,
         });
         let t4 = Instant::now();
+        let sim = &mut self.sim;
         sim.advance(&output.torques);
+        self.loaded = sim.foot_normal_forces_n().map(|_, f| *f > LOADED_FOOT_N);
         // Pushes take effect between steps.
-        pending.retain(|p| {
+        let t_start = self.t_start;
+        self.pending.retain(|p| {
             if sim.time_s() - t_start >= p.at_s {
                 let qvel = sim.data_mut().qvel_mut();
                 for (v, dv) in qvel[..3].iter_mut().zip(p.dv_world.iter()) {
@@ -154,7 +241,7 @@ pub fn run_closed_loop(
             }
         });
         let t5 = Instant::now();
-
+        let stats = &mut self.stats;
         if let Some(ev) = &output.mpc_event {
             stats.mpc_solves += 1;
             stats.mpc_solve_times_s.push(ev.solve_time_s);
@@ -170,13 +257,39 @@ pub fn run_closed_loop(
         stats.stages.planner_s += (t2 - t1).as_secs_f64();
         stats.stages.observer_s += (t4 - t3).as_secs_f64();
         stats.steps += 1;
-        if limits.fallen(&state) {
+        stats.sim_time_s = stats.steps as f64 * self.sim.timestep_s();
+        stats.wall_time_s = self.wall_start.elapsed().as_secs_f64();
+        let fell = self.limits.fallen(&state);
+        if fell && !stats.fell {
             stats.fell = true;
             stats.fell_at_s = Some(state.time_s - t_start);
+        }
+        StepOutcome { fell }
+    }
+
+    pub fn into_parts(self) -> (Simulation, LoopStats) {
+        (self.sim, self.stats)
+    }
+}
+
+/// Runs the loop for `duration_s` of simulated time or until a fall, with the command of
+/// `command_at(t)`; `observer` sees every step.
+pub fn run_closed_loop(
+    sim: Simulation,
+    controller: &mut dyn Controller,
+    duration_s: f64,
+    pushes: &[Push],
+    limits: FallLimits,
+    command_at: impl Fn(f64) -> VelocityCommand,
+    mut observer: impl FnMut(&StepRecord),
+) -> (Simulation, LoopStats) {
+    let steps = (duration_s / sim.timestep_s()).round() as usize;
+    let mut lp = ClosedLoop::new(sim, pushes, limits);
+    for _ in 0..steps {
+        let command = command_at(lp.sim().time_s());
+        if lp.step(controller, command, &mut observer).fell {
             break;
         }
     }
-    stats.sim_time_s = stats.steps as f64 * dt;
-    stats.wall_time_s = wall.elapsed().as_secs_f64();
-    stats
+    lp.into_parts()
 }

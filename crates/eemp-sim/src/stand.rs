@@ -6,8 +6,10 @@ use crate::closed_loop::{run_closed_loop, FallLimits, LoopStats, Push, StepRecor
 use crate::mjcf::SceneExtras;
 use eemp_core::config_error::ConfigError;
 use eemp_core::controller::{ControllerConfig, LocomotionController};
+use eemp_core::eemp_controller::StandController;
 use eemp_core::kinematics::LegKinematics;
 use eemp_core::leg::LegMap;
+use eemp_core::planner::VelocityCommand;
 use eemp_core::robot::RobotConfig;
 use eemp_core::stand_profile::{BodyMotionProfile, StandPlanner};
 use nalgebra::Vector3;
@@ -50,7 +52,7 @@ pub fn run_stand(
     observer: impl FnMut(&StepRecord),
 ) -> Result<StandRun, ScenarioError> {
     let mut sim = Simulation::new(robot, &SceneExtras::default())?;
-    let mut controller = LocomotionController::new(robot, controller_config.clone())?;
+    let locomotion = LocomotionController::new(robot, controller_config.clone())?;
     reset_crouched(&mut sim, robot);
     sim.prepare();
     let start = sim.ground_truth_state();
@@ -60,14 +62,18 @@ pub fn run_stand(
         controller_config.mpc.horizon,
         controller_config.mpc.dt_s,
     )?;
-    let stats = run_closed_loop(
-        &mut sim,
+    let mut controller = StandController::new(planner, locomotion);
+    let (_, stats) = run_closed_loop(
+        sim,
         &mut controller,
         duration_s,
         pushes,
         FallLimits::default(),
-        |state, feet| planner.plan(state.time_s, feet),
+        |_| VelocityCommand::default(),
         observer,
     );
-    Ok(StandRun { stats, planner })
+    Ok(StandRun {
+        stats,
+        planner: controller.planner,
+    })
 }

@@ -6,7 +6,9 @@ use crate::closed_loop::{run_closed_loop, FallLimits, LoopStats, Push, StepRecor
 use crate::mjcf::SceneExtras;
 use crate::stand::ScenarioError;
 use eemp_core::config_error::{check_range, ConfigError};
+use eemp_core::control::Controller;
 use eemp_core::controller::{ControllerConfig, LocomotionController};
+use eemp_core::eemp_controller::{EempController, ParamsSource};
 use eemp_core::kinematics::LegKinematics;
 use eemp_core::leg::{Leg, LegMap};
 use eemp_core::metrics::{MetricsAccumulator, WalkMetrics};
@@ -214,32 +216,54 @@ pub fn standing_joints(
     Ok(q)
 }
 
-/// Runs a walk; `observer` sees every control step.
-pub fn run_walk(
-    robot: &RobotConfig,
-    spec: &WalkSpec,
-    mut observer: impl FnMut(&StepRecord),
-) -> Result<WalkRun, ScenarioError> {
-    spec.validate()?;
-    let mut robot = robot.clone();
-    if let Some(mu) = spec.floor_friction {
-        robot.simulation.floor_friction = mu;
+/// The state a walk starts from: trunk height and joint angles, at rest.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StartPose {
+    pub trunk_height_m: f64,
+    pub joints: LegMap<Vector3<f64>>,
+}
+
+impl StartPose {
+    /// EEMP's start: feet under the hips with the trunk at the first commanded X_z.
+    pub fn eemp(robot: &RobotConfig, spec: &WalkSpec) -> Result<Self, ConfigError> {
+        let kin = LegKinematics::new(robot);
+        let first = spec
+            .profile
+            .segments
+            .first()
+            .map(|s| s.start_s)
+            .unwrap_or(0.0);
+        let trunk_height_m = spec.params_at(first).body_height_m;
+        let joints = standing_joints(&kin, trunk_height_m, robot.leg.foot_radius_m)?;
+        Ok(StartPose {
+            trunk_height_m,
+            joints,
+        })
     }
-    let mut sim = Simulation::new(&robot, &SceneExtras::default())?;
-    let mut controller = LocomotionController::new(&robot, spec.controller.clone())?;
-    let kin = LegKinematics::new(&robot);
-    let first = spec
-        .profile
-        .segments
-        .first()
-        .map(|s| s.start_s)
-        .unwrap_or(0.0);
-    let start_height = spec.params_at(first).body_height_m;
-    let q0 = standing_joints(&kin, start_height, robot.leg.foot_radius_m)?;
-    sim.reset(Vector3::new(0.0, 0.0, start_height + 1e-3), &q0);
-    if spec.seed != 0 {
+
+    /// Standing in the joint pose `joints` with the feet on flat ground.
+    pub fn from_joints(robot: &RobotConfig, joints: LegMap<Vector3<f64>>) -> Self {
+        let kin = LegKinematics::new(robot);
+        let lowest = Leg::ALL
+            .iter()
+            .map(|l| kin.foot_position_body(*l, &joints[*l]).z)
+            .fold(f64::INFINITY, f64::min);
+        StartPose {
+            trunk_height_m: -lowest + robot.leg.foot_radius_m,
+            joints,
+        }
+    }
+}
+
+/// Puts `sim` in the start pose (1 mm above the floor), with the walk's seeded perturbation.
+pub fn reset_to_start(sim: &mut Simulation, start: &StartPose, seed: u64) {
+    sim.reset(
+        Vector3::new(0.0, 0.0, start.trunk_height_m + 1e-3),
+        &start.joints,
+    );
+    if seed != 0 {
         use rand::{Rng, SeedableRng};
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(spec.seed);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
         let yaw: f64 = rng.random_range(-0.05..0.05);
         let (vx, vy): (f64, f64) = (rng.random_range(-0.05..0.05), rng.random_range(-0.05..0.05));
         let data = sim.data_mut();
@@ -248,35 +272,76 @@ pub fn run_walk(
         data.qvel_mut()[1] = vy;
         data.forward();
     }
-    let mut planner = EemPlanner::new(
+}
+
+/// Runs a walk under EEMP; `observer` sees every control step.
+pub fn run_walk(
+    robot: &RobotConfig,
+    spec: &WalkSpec,
+    observer: impl FnMut(&StepRecord),
+) -> Result<WalkRun, ScenarioError> {
+    spec.validate()?;
+    let kin = LegKinematics::new(robot);
+    let planner = EemPlanner::new(
         spec.planner.clone(),
-        kin.clone(),
+        kin,
         robot.leg.foot_radius_m,
         spec.controller.mpc.horizon,
         spec.controller.mpc.dt_s,
     )?;
+    let locomotion = LocomotionController::new(robot, spec.controller.clone())?;
+    let params = match &spec.params_table {
+        Some(t) => ParamsSource::Table(t.clone()),
+        None => ParamsSource::Constant(spec.params),
+    };
+    let mut controller = EempController::new(planner, locomotion, params);
+    let start = StartPose::eemp(robot, spec)?;
+    run_walk_with(robot, spec, &start, &mut controller, observer)
+}
+
+/// Runs a walk with any controller: the same scenario (start, command profile, pushes,
+/// friction, duration) and the same metrics for every method. The spec's planner settings are
+/// used only by EEMP's own constructor ([`run_walk`]).
+pub fn run_walk_with(
+    robot: &RobotConfig,
+    spec: &WalkSpec,
+    start: &StartPose,
+    controller: &mut dyn Controller,
+    mut observer: impl FnMut(&StepRecord),
+) -> Result<WalkRun, ScenarioError> {
+    spec.validate()?;
+    let mut robot = robot.clone();
+    if let Some(mu) = spec.floor_friction {
+        robot.simulation.floor_friction = mu;
+    }
+    let mut sim = Simulation::new(&robot, &SceneExtras::default())?;
+    reset_to_start(&mut sim, start, spec.seed);
+    let kin = LegKinematics::new(&robot);
     let mut metrics = MetricsAccumulator::default();
     let dt = sim.timestep_s();
     let mass = robot.total_mass_kg();
-    let stats = run_closed_loop(
-        &mut sim,
-        &mut controller,
+    let mut touchdowns = LegMap::splat(0usize);
+    let mut was_down: Option<LegMap<bool>> = None;
+    let (_, stats) = run_closed_loop(
+        sim,
+        controller,
         spec.duration_s,
         &spec.pushes,
         FallLimits::default(),
-        |state, feet| {
-            planner.plan(
-                state.time_s,
-                state,
-                feet,
-                &spec.profile.command_at(state.time_s),
-                &spec.params_at(state.time_s),
-            )
-        },
+        |t| spec.profile.command_at(t),
         |record| {
             let t = record.state.time_s;
+            let stance = record.stance();
+            if let Some(prev) = was_down {
+                for leg in Leg::ALL {
+                    if record.loaded[leg] && !prev[leg] {
+                        touchdowns[leg] += 1;
+                    }
+                }
+            }
+            was_down = Some(record.loaded);
             if t >= spec.metrics_start_s {
-                let cmd = spec.profile.command_at(t);
+                let cmd = record.command;
                 let qd = record.state.joints.map(|_, j| j.qd);
                 let jac =
                     LegMap::from_fn(|leg| kin.foot_jacobian_body(leg, &record.state.joints[leg].q));
@@ -287,14 +352,16 @@ pub fn run_walk(
                     [cmd.vx_mps, cmd.vy_mps],
                     &qd,
                     &record.output.torques,
-                    &record.plan.stance,
+                    &stance,
                     &jac,
                 );
             }
             observer(record);
         },
     );
-    let steps = planner.steps();
+    // EEMP counts the swings it started; a controller without a plan is counted by its
+    // touchdowns (a foot becoming loaded, see `LOADED_FOOT_N`).
+    let steps = controller.steps().unwrap_or(touchdowns);
     Ok(WalkRun {
         stats,
         metrics: metrics.finish(mass),

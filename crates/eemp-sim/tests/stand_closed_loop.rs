@@ -21,9 +21,9 @@ fn rises_and_tracks_the_body_profile() {
         &[],
         |r| {
             if r.state.time_s > 2.5 {
-                let e = r.state.body.p_world - r.plan.body_now.p_world;
+                let e = r.state.body.p_world - r.plan.unwrap().body_now.p_world;
                 sq_pos += e.norm_squared();
-                let mut er = r.state.body.rpy() - r.plan.body_now.rpy;
+                let mut er = r.state.body.rpy() - r.plan.unwrap().body_now.rpy;
                 er.z = (er.z + std::f64::consts::PI).rem_euclid(2.0 * std::f64::consts::PI)
                     - std::f64::consts::PI;
                 sq_rpy += er.norm_squared();
@@ -63,7 +63,8 @@ fn absorbs_a_lateral_push_of_0_3_m_per_s() {
         &[push],
         |r| {
             if r.state.time_s > 2.5 {
-                max_dev = max_dev.max((r.state.body.p_world - r.plan.body_now.p_world).norm());
+                max_dev =
+                    max_dev.max((r.state.body.p_world - r.plan.unwrap().body_now.p_world).norm());
             }
         },
     )

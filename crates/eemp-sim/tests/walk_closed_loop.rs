@@ -65,7 +65,7 @@ fn at_low_speed_the_body_advances_on_four_stance_legs_for_over_a_second() {
             if r.state.time_s < 2.0 {
                 return;
             }
-            if r.plan.stance.0.iter().all(|s| *s) {
+            if r.plan.unwrap().stance.0.iter().all(|s| *s) {
                 if current == 0.0 {
                     start_x = r.state.body.p_world.x;
                 }

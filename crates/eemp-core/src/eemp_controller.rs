@@ -1,0 +1,107 @@
+//! EEMP as a [`Controller`]: Algorithm 1 (planner) → MPC + swing law ([`LocomotionController`]),
+//! and the standing variant (body-motion profile → MPC on four feet).
+
+use crate::control::{ControlInput, Controller};
+use crate::controller::{ControlOutput, LocomotionController, Plan};
+use crate::leg::LegMap;
+use crate::planner::params_table::ParamsTable;
+use crate::planner::{EemPlanner, PlannerParams};
+use crate::stand_profile::StandPlanner;
+
+/// Where the planner's five parameters come from at each step.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ParamsSource {
+    /// One set for the whole run (e.g. the paper's Table II).
+    Constant(PlannerParams),
+    /// EEMP-Analytical: looked up per commanded speed |(v_x, v_y)|.
+    Table(ParamsTable),
+}
+
+impl ParamsSource {
+    pub fn at_speed(&self, speed_mps: f64) -> PlannerParams {
+        match self {
+            ParamsSource::Constant(p) => *p,
+            ParamsSource::Table(t) => t.lookup(speed_mps),
+        }
+    }
+}
+
+/// The walking controller of the paper.
+pub struct EempController {
+    pub planner: EemPlanner,
+    pub locomotion: LocomotionController,
+    pub params: ParamsSource,
+    last_plan: Option<Plan>,
+}
+
+impl EempController {
+    pub fn new(
+        planner: EemPlanner,
+        locomotion: LocomotionController,
+        params: ParamsSource,
+    ) -> Self {
+        EempController {
+            planner,
+            locomotion,
+            params,
+            last_plan: None,
+        }
+    }
+}
+
+impl Controller for EempController {
+    fn control(&mut self, input: &ControlInput) -> ControlOutput {
+        let t = input.state.time_s;
+        let c = input.command;
+        let params = self.params.at_speed(c.vx_mps.hypot(c.vy_mps));
+        let plan = self
+            .planner
+            .plan(t, input.state, input.feet_world, &c, &params);
+        let out = self
+            .locomotion
+            .update(t, input.state, &plan, input.dynamics);
+        self.last_plan = Some(plan);
+        out
+    }
+
+    fn plan(&self) -> Option<&Plan> {
+        self.last_plan.as_ref()
+    }
+
+    fn steps(&self) -> Option<LegMap<usize>> {
+        Some(self.planner.steps())
+    }
+}
+
+/// Standing: the body follows a motion profile with all four feet down (the command is unused).
+pub struct StandController {
+    pub planner: StandPlanner,
+    pub locomotion: LocomotionController,
+    last_plan: Option<Plan>,
+}
+
+impl StandController {
+    pub fn new(planner: StandPlanner, locomotion: LocomotionController) -> Self {
+        StandController {
+            planner,
+            locomotion,
+            last_plan: None,
+        }
+    }
+}
+
+impl Controller for StandController {
+    fn control(&mut self, input: &ControlInput) -> ControlOutput {
+        let t = input.state.time_s;
+        let plan = self.planner.plan(t, input.feet_world);
+        let out = self
+            .locomotion
+            .update(t, input.state, &plan, input.dynamics);
+        self.last_plan = Some(plan);
+        out
+    }
+
+    fn plan(&self) -> Option<&Plan> {
+        self.last_plan.as_ref()
+    }
+}

@@ -1,0 +1,234 @@
+//! Training configuration: one TOML file, every field with a default, a unit and a range.
+
+use crate::tasks::cartpole::CartPoleConfig;
+use crate::tasks::model_free::ModelFreeConfig;
+use eemp_core::config_error::{check_range, ConfigError};
+use serde::{Deserialize, Serialize};
+
+/// Which task a run trains (and which a policy file is for).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum TaskKind {
+    /// The paper's model-free RL baseline (Sec. II-C): joint targets from proprioception.
+    ModelFree,
+    /// A MuJoCo cart-pole the project builds: PPO's own test task.
+    CartPole,
+}
+
+impl TaskKind {
+    pub fn name(self) -> &'static str {
+        match self {
+            TaskKind::ModelFree => "model-free",
+            TaskKind::CartPole => "cart-pole",
+        }
+    }
+}
+
+impl std::str::FromStr for TaskKind {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "model-free" => Ok(TaskKind::ModelFree),
+            "cart-pole" => Ok(TaskKind::CartPole),
+            other => Err(format!(
+                "unknown task '{other}': allowed model-free, cart-pole"
+            )),
+        }
+    }
+}
+
+/// How the learning rate moves.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum LrSchedule {
+    Constant,
+    /// rsl_rl's rule: ÷1.5 when the KL of a minibatch exceeds 2·desired_kl, ×1.5 below half.
+    Adaptive,
+    /// Linear decay to lr_min over the run.
+    Linear,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct PpoConfig {
+    /// Discount per policy step.
+    pub gamma: f64,
+    /// GAE λ.
+    pub lambda: f64,
+    /// Clip range ε of the probability ratio (and of the value change).
+    pub clip: f64,
+    pub epochs: usize,
+    pub minibatches: usize,
+    pub learning_rate: f64,
+    pub lr_schedule: LrSchedule,
+    pub desired_kl: f64,
+    pub lr_min: f64,
+    pub lr_max: f64,
+    pub entropy_coef: f64,
+    pub value_coef: f64,
+    pub clip_value_loss: bool,
+    pub max_grad_norm: f64,
+    /// Initial standard deviation of the Gaussian policy (action units).
+    pub init_std: f64,
+    /// Lower bound of the standard deviation, enforced after every optimiser step.
+    pub min_std: f64,
+}
+
+impl Default for PpoConfig {
+    /// rsl_rl's legged_gym settings (see rl-recipes-notes.md §1b).
+    fn default() -> Self {
+        PpoConfig {
+            gamma: 0.99,
+            lambda: 0.95,
+            clip: 0.2,
+            epochs: 5,
+            minibatches: 4,
+            learning_rate: 1e-3,
+            lr_schedule: LrSchedule::Adaptive,
+            desired_kl: 0.01,
+            lr_min: 1e-5,
+            lr_max: 1e-2,
+            entropy_coef: 0.01,
+            value_coef: 1.0,
+            clip_value_loss: true,
+            max_grad_norm: 1.0,
+            init_std: 1.0,
+            min_std: 0.05,
+        }
+    }
+}
+
+impl PpoConfig {
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        check_range("ppo.gamma", self.gamma, 0.0, 1.0)?;
+        check_range("ppo.lambda", self.lambda, 0.0, 1.0)?;
+        check_range("ppo.clip", self.clip, 0.01, 1.0)?;
+        check_range("ppo.epochs", self.epochs as f64, 1.0, 100.0)?;
+        check_range("ppo.minibatches", self.minibatches as f64, 1.0, 1024.0)?;
+        check_range("ppo.learning_rate", self.learning_rate, 0.0, 1.0)?;
+        check_range("ppo.desired_kl", self.desired_kl, 1e-6, 1.0)?;
+        check_range("ppo.lr_min", self.lr_min, 0.0, 1.0)?;
+        check_range("ppo.lr_max", self.lr_max, self.lr_min, 1.0)?;
+        check_range("ppo.entropy_coef", self.entropy_coef, 0.0, 1.0)?;
+        check_range("ppo.value_coef", self.value_coef, 0.0, 100.0)?;
+        check_range("ppo.max_grad_norm", self.max_grad_norm, 1e-6, 1e6)?;
+        check_range("ppo.init_std", self.init_std, 1e-3, 10.0)?;
+        check_range("ppo.min_std", self.min_std, 1e-4, self.init_std)
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Activation {
+    Elu,
+    Tanh,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct NetworkConfig {
+    pub actor_hidden: Vec<usize>,
+    pub critic_hidden: Vec<usize>,
+    pub activation: Activation,
+}
+
+impl Default for NetworkConfig {
+    fn default() -> Self {
+        NetworkConfig {
+            actor_hidden: vec![128, 128],
+            critic_hidden: vec![128, 128],
+            activation: Activation::Elu,
+        }
+    }
+}
+
+impl NetworkConfig {
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        for (name, layers) in [
+            ("network.actor_hidden", &self.actor_hidden),
+            ("network.critic_hidden", &self.critic_hidden),
+        ] {
+            if layers.is_empty() || layers.len() > 8 {
+                return Err(ConfigError::Invalid {
+                    name: name.into(),
+                    message: format!("has {} layers: allowed 1..=8", layers.len()),
+                });
+            }
+            for (i, &n) in layers.iter().enumerate() {
+                check_range(&format!("{name}[{i}]"), n as f64, 1.0, 4096.0)?;
+            }
+        }
+        Ok(())
+    }
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TrainConfig {
+    pub task: TaskKind,
+    pub seed: u64,
+    /// Parallel environments.
+    pub num_envs: usize,
+    /// Policy steps per environment per iteration (rollout length).
+    pub steps_per_env: usize,
+    /// Training stops after this many environment (policy) steps.
+    pub total_env_steps: u64,
+    /// Write a checkpoint every this many iterations.
+    pub checkpoint_every: usize,
+    pub ppo: PpoConfig,
+    pub network: NetworkConfig,
+    pub model_free: ModelFreeConfig,
+    pub cart_pole: CartPoleConfig,
+}
+
+impl Default for TrainConfig {
+    fn default() -> Self {
+        TrainConfig {
+            task: TaskKind::ModelFree,
+            seed: 1,
+            num_envs: 128,
+            steps_per_env: 24,
+            total_env_steps: 20_000_000,
+            checkpoint_every: 10,
+            ppo: PpoConfig::default(),
+            network: NetworkConfig::default(),
+            model_free: ModelFreeConfig::default(),
+            cart_pole: CartPoleConfig::default(),
+        }
+    }
+}
+
+impl TrainConfig {
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        check_range("num_envs", self.num_envs as f64, 1.0, 65536.0)?;
+        check_range("steps_per_env", self.steps_per_env as f64, 1.0, 10000.0)?;
+        check_range("total_env_steps", self.total_env_steps as f64, 1.0, 1e11)?;
+        check_range("checkpoint_every", self.checkpoint_every as f64, 1.0, 1e6)?;
+        let batch = self.num_envs * self.steps_per_env;
+        if batch < self.ppo.minibatches {
+            return Err(ConfigError::Invalid {
+                name: "ppo.minibatches".into(),
+                message: format!(
+                    "{} is more than the {batch} transitions of an iteration (num_envs × steps_per_env)",
+                    self.ppo.minibatches
+                ),
+            });
+        }
+        self.ppo.validate()?;
+        self.network.validate()?;
+        match self.task {
+            TaskKind::ModelFree => self.model_free.validate(),
+            TaskKind::CartPole => self.cart_pole.validate(),
+        }
+    }
+
+    /// Reads and validates a config file; errors name the file and the key.
+    pub fn load(path: &std::path::Path) -> Result<Self, ConfigError> {
+        let c: TrainConfig = eemp_core::config_error::load_toml(path)?;
+        c.validate().map_err(|e| ConfigError::Invalid {
+            name: path.display().to_string(),
+            message: e.to_string(),
+        })?;
+        Ok(c)
+    }
+}

@@ -1,0 +1,23 @@
+//! Learned controllers for the A1 on the project's one closed loop.
+//!
+//! - [`env`]: the environment interface and N environments stepped on a worker pool.
+//! - [`tasks`]: the model-free baseline ([`tasks::model_free`]) and a cart-pole test task.
+//! - [`nn`], [`adam`], [`ppo`], [`normalizer`]: networks on candle, Adam with open state,
+//!   the PPO update, running observation normalisation.
+//! - [`train`]: the training loop with `train.csv`, checkpoints and resume.
+//! - [`policy`]: policy files; [`controller`]: a trained policy as a [`eemp_core::control::Controller`].
+
+// Time, env and parameter indices (t, e, i) are the algorithm's notation here.
+#![allow(clippy::needless_range_loop)]
+
+pub mod adam;
+pub mod config;
+pub mod controller;
+pub mod env;
+pub mod nn;
+pub mod normalizer;
+pub mod policy;
+pub mod ppo;
+pub mod tasks;
+pub mod tensor_file;
+pub mod train;

@@ -1,0 +1,4 @@
+//! The tasks PPO trains on.
+
+pub mod cartpole;
+pub mod model_free;

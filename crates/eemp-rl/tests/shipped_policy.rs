@@ -1,0 +1,43 @@
+//! The shipped model-free policy walks on the evaluation model (1 ms steps, the robot file's
+//! physics), through the same scenario and metrics code as EEMP.
+
+use eemp_core::planner::{PlannerConfig, PlannerParams, VelocityCommand};
+use eemp_core::robot::RobotConfig;
+use eemp_rl::config::TaskKind;
+use eemp_rl::controller::PolicyController;
+use eemp_rl::policy::Policy;
+use eemp_sim::walk::{run_walk_with, StartPose, WalkSpec};
+use std::path::PathBuf;
+
+fn shipped() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../policies/a1_model_free.safetensors")
+}
+
+#[test]
+fn the_shipped_model_free_policy_walks_5_s_at_0_5_m_per_s() {
+    let robot = RobotConfig::a1();
+    let policy = Policy::load(&shipped(), Some(TaskKind::ModelFree)).unwrap();
+    assert_eq!(policy.config.model_free.train_timestep_s, 0.004);
+    let mut c = PolicyController::new(policy, &robot, robot.simulation.timestep_s).unwrap();
+    let spec = WalkSpec::constant(
+        PlannerConfig::default(),
+        PlannerParams::default(),
+        VelocityCommand {
+            vx_mps: 0.5,
+            ..Default::default()
+        },
+        5.0,
+    );
+    let start = StartPose::from_joints(&robot, c.default_pose());
+    let run = run_walk_with(&robot, &spec, &start, &mut c, |_| {}).unwrap();
+    assert!(!run.stats.fell, "fell at {:?}", run.stats.fell_at_s);
+    let rmse = run.metrics.vel_rmse_mps.unwrap();
+    assert!(rmse <= 0.1, "velocity RMSE {rmse} m/s");
+    assert!(
+        run.metrics.distance_m > 1.2,
+        "walked {} m",
+        run.metrics.distance_m
+    );
+    assert!(run.steps.0.iter().all(|&n| n >= 5), "steps {:?}", run.steps);
+    assert_eq!(c.invalid_steps, 0);
+}
