@@ -23,6 +23,10 @@ pub struct WalkArgs {
     /// Policy file for a learned --controller (e.g. policies/a1_model_free.safetensors).
     #[arg(long)]
     pub policy: Option<PathBuf>,
+    /// What the controller sees: ground-truth (the simulator's state) or kf (the linear Kalman
+    /// filter on the simulated IMU and joint encoders).
+    #[arg(long, default_value = "ground-truth")]
+    pub estimator: String,
     /// trot, walk or free (no predetermined order). EEMP only.
     #[arg(long, default_value = "trot")]
     pub gait: String,
@@ -169,6 +173,18 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
         spec.profile = load_toml::<VelocityProfile>(p).map_err(|e| e.to_string())?;
     }
     spec.controller.mpc_period_s = args.mpc_period;
+    spec.state_source = match args.estimator.as_str() {
+        "ground-truth" => eemp_sim::closed_loop::StateSource::GroundTruth,
+        "kf" => eemp_sim::closed_loop::StateSource::Kf(eemp_core::estimator::KfConfig {
+            foot_height_m: robot.leg.foot_radius_m,
+            ..Default::default()
+        }),
+        other => {
+            return Err(format!(
+                "unknown --estimator '{other}': allowed ground-truth, kf"
+            ))
+        }
+    };
     spec.floor_friction = args.friction;
     spec.params_table = params_table;
     if let Some(at) = args.push_at {
@@ -358,7 +374,9 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
             "planner": st.stages.planner_s / total,
             "logging": st.stages.observer_s / total,
         },
-        "state_estimate": "ground truth (simulator state)",
+        "state_estimate": spec.state_source.name(),
+        "estimation_vel_rmse_mps": run.estimation.vel_rmse_mps(),
+        "estimation_pos_rmse_m": run.estimation.pos_rmse_m(),
     });
     write_json(&args.out.join("summary.json"), &summary).map_err(|e| e.to_string())?;
     let panels = vec![

@@ -39,6 +39,12 @@ pub trait Controller {
         true
     }
 
+    /// Wall time the last step spent planning (inside [`Controller::control`]), s, for the
+    /// loop's time budget; 0 for controllers without a planner.
+    fn last_planning_time_s(&self) -> f64 {
+        0.0
+    }
+
     /// Steps (swings started) per leg so far, for controllers that count them.
     fn steps(&self) -> Option<LegMap<usize>> {
         None

@@ -32,6 +32,7 @@ pub struct EempController {
     pub locomotion: LocomotionController,
     pub params: ParamsSource,
     last_plan: Option<Plan>,
+    planning_time_s: f64,
 }
 
 impl EempController {
@@ -45,6 +46,7 @@ impl EempController {
             locomotion,
             params,
             last_plan: None,
+            planning_time_s: 0.0,
         }
     }
 }
@@ -53,10 +55,12 @@ impl Controller for EempController {
     fn control(&mut self, input: &ControlInput) -> ControlOutput {
         let t = input.state.time_s;
         let c = input.command;
+        let started = std::time::Instant::now();
         let params = self.params.at_speed(c.vx_mps.hypot(c.vy_mps));
         let plan = self
             .planner
             .plan(t, input.state, input.feet_world, &c, &params);
+        self.planning_time_s = started.elapsed().as_secs_f64();
         let out = self
             .locomotion
             .update(t, input.state, &plan, input.dynamics);
@@ -70,6 +74,10 @@ impl Controller for EempController {
 
     fn steps(&self) -> Option<LegMap<usize>> {
         Some(self.planner.steps())
+    }
+
+    fn last_planning_time_s(&self) -> f64 {
+        self.planning_time_s
     }
 }
 

@@ -6,6 +6,8 @@
 //! - [`planner`]: the energy-efficient planner, eqs. (5)–(7) and Algorithm 1.
 //! - [`control`]: the [`control::Controller`] interface every controller implements;
 //!   [`eemp_controller`] (EEMP walking and standing), [`joint_pd`] (joint PD, how policies act).
+//! - [`estimator`]: attitude from the IMU and a linear Kalman filter for trunk position and
+//!   velocity from IMU + leg kinematics (what the robot knows of itself).
 //! - [`metrics`]: cost of transport (eq. 8) and force manipulability (eq. 9).
 
 // Horizon and block indices (k, l, j) are the mathematics here; iterator chains would hide them.
@@ -18,6 +20,7 @@ pub mod control;
 pub mod controller;
 pub mod convex_mpc;
 pub mod eemp_controller;
+pub mod estimator;
 pub mod joint_pd;
 pub mod kinematics;
 pub mod leg;

@@ -261,6 +261,13 @@ pub fn update(
                 .map(|v| grads.get(v.as_tensor()).cloned())
                 .collect();
             let norm = grad_norm(&g)?;
+            if !norm.is_finite() {
+                // A non-finite gradient would write NaN into every weight and moment.
+                return Err(candle_core::Error::Msg(format!(
+                    "non-finite gradient (loss {:?}); the update is refused and nothing is saved",
+                    loss.total.to_scalar::<f32>().ok()
+                )));
+            }
             if norm > cfg.max_grad_norm {
                 let s = cfg.max_grad_norm / (norm + 1e-6);
                 for t in g.iter_mut().flatten() {

@@ -319,6 +319,13 @@ impl<E: Env> Trainer<E> {
                 .value(&x)
                 .and_then(|v| v.to_vec1())
                 .map_err(|e| e.to_string())?;
+            if mean.iter().chain(&values).any(|v| !v.is_finite()) {
+                return Err(format!(
+                    "the network produced a non-finite action or value at iteration {}; \
+                     stopping before anything is saved (the last checkpoint is intact)",
+                    self.iteration + 1
+                ));
+            }
             for i in 0..n * a {
                 let z: f64 = self.rng.sample(StandardNormal);
                 actions[i] = mean[i] + std[i % a] * z as f32;
@@ -446,6 +453,8 @@ impl<E: Env> Trainer<E> {
             f.insert_tensor(&format!("adam.v.{i}"), v)
                 .map_err(|e| e.to_string())?;
         }
+        f.metadata
+            .insert("iteration".into(), self.iteration.to_string());
         f.save(&dir.join("learner.safetensors"))?;
         let state = CheckpointState {
             config: self.config.clone(),
@@ -491,6 +500,16 @@ impl<E: Env> Trainer<E> {
         }
         let lpath = dir.join("learner.safetensors");
         let f = TensorFile::load(&lpath)?;
+        if f.meta(&lpath, "iteration")? != s.iteration.to_string() {
+            return Err(format!(
+                "{} is of iteration {} but {} of iteration {}: the run was killed while \
+                 checkpointing; restart it without --resume",
+                lpath.display(),
+                f.meta(&lpath, "iteration")?,
+                path.display(),
+                s.iteration
+            ));
+        }
         let p = Policy::from_file(&lpath, &f, Some(self.config.task))?;
         for (dst, src) in self.policy.net.vars().iter().zip(p.net.vars()) {
             dst.set(src.as_tensor()).map_err(|e| e.to_string())?;

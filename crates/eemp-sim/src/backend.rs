@@ -49,6 +49,8 @@ struct Handles {
     qpos_adr: LegMap<usize>,
     dof_adr: LegMap<usize>,
     actuator: LegMap<usize>,
+    /// sensordata addresses of the IMU's quaternion, gyro and accelerometer.
+    imu_adr: [usize; 3],
 }
 
 pub struct Simulation {
@@ -136,6 +138,11 @@ impl Simulation {
                 "leg joints are consecutive"
             );
         }
+        let mut imu_adr = [0usize; 3];
+        for (k, name) in ["imu_quat", "imu_gyro", "imu_accel"].iter().enumerate() {
+            let sid = id(m, MjtObjBase::mjOBJ_SENSOR, "sensor", name)?;
+            imu_adr[k] = m.sensor_adr()[sid] as usize;
+        }
         let nv = m.ffi().nv as usize;
         let data = MjData::new(model.clone());
         Ok(Simulation {
@@ -152,6 +159,7 @@ impl Simulation {
                 qpos_adr,
                 dof_adr,
                 actuator,
+                imu_adr,
             },
             nv,
             mass_matrix: vec![0.0; nv * nv],
@@ -245,6 +253,23 @@ impl Simulation {
             }
         }
         self.data.step();
+    }
+
+    /// The IMU as MuJoCo simulates it (noise-free): attitude and gyro of the current state
+    /// (after [`Simulation::prepare`]), accelerometer of the last completed step.
+    pub fn imu(&self) -> eemp_core::estimator::ImuReading {
+        let d = self.data.sensordata();
+        let [q, g, a] = self.handles.imu_adr;
+        eemp_core::estimator::ImuReading {
+            r_world_body: UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
+                d[q],
+                d[q + 1],
+                d[q + 2],
+                d[q + 3],
+            )),
+            gyro_body: Vector3::new(d[g], d[g + 1], d[g + 2]),
+            accel_body: Vector3::new(d[a], d[a + 1], d[a + 2]),
+        }
     }
 
     /// Ground-truth state estimate: the simulator's own state, read without noise or delay.
@@ -369,6 +394,25 @@ impl Simulation {
         n
     }
 
+    /// Whether MuJoCo found a bad position, velocity or acceleration since the last call (it
+    /// then silently resets the data to the model's initial pose); clears those counters.
+    pub fn take_instability(&mut self) -> bool {
+        let w = self.data.warning_mut();
+        let mut any = false;
+        for kind in [
+            MjtWarning::mjWARN_BADQPOS,
+            MjtWarning::mjWARN_BADQVEL,
+            MjtWarning::mjWARN_BADQACC,
+        ] {
+            let stat = &mut w[kind as usize];
+            if stat.number > 0 {
+                any = true;
+                stat.number = 0;
+            }
+        }
+        any
+    }
+
     /// Whether the trunk touches the ground (a fall for learned controllers, as in legged_gym).
     pub fn trunk_contact(&self) -> bool {
         let (floor, trunk) = (
@@ -411,6 +455,11 @@ impl Simulation {
         // SAFETY: plain field write on the data this simulation owns.
         unsafe { self.data.ffi_mut().time = s.time_s };
         self.data.forward();
+        // mj_forward's constraint solve overwrote the warm start: put back the one an
+        // uninterrupted run would start its next step from.
+        self.data
+            .qacc_warmstart_mut()
+            .copy_from_slice(&s.qacc_warmstart);
         Ok(())
     }
 

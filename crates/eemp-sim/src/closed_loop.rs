@@ -5,6 +5,7 @@ use crate::backend::Simulation;
 use eemp_core::body_state::RobotState;
 use eemp_core::control::{ControlInput, Controller};
 use eemp_core::controller::{feet_world, ControlOutput, Plan};
+use eemp_core::estimator::{EstimatorInput, KfConfig, LinearKf};
 use eemp_core::leg::LegMap;
 use eemp_core::planner::VelocityCommand;
 use nalgebra::Vector3;
@@ -49,7 +50,10 @@ impl FallLimits {
 
 /// Everything about one control step, for observers (metrics, traces).
 pub struct StepRecord<'a> {
+    /// The simulator's true state (metrics are measured on it).
     pub state: &'a RobotState,
+    /// What the controller was given: the true state, or the estimator's output.
+    pub estimate: &'a RobotState,
     /// The controller's plan, when it has one (EEMP does, a learned policy does not).
     pub plan: Option<&'a Plan>,
     pub command: VelocityCommand,
@@ -65,6 +69,58 @@ pub struct StepRecord<'a> {
 /// soft (the feet sink ~17 mm standing), so a foot can stay "in contact" through a swing with
 /// a few newtons; a stance foot of the 12.5 kg A1 carries 30–60 N.
 pub const LOADED_FOOT_N: f64 = 5.0;
+
+/// Where the controller's state comes from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum StateSource {
+    /// The simulator's own state, read without noise or delay.
+    GroundTruth,
+    /// The linear Kalman filter on the simulated IMU and encoders (`eemp_core::estimator`).
+    Kf(KfConfig),
+}
+
+impl StateSource {
+    pub fn name(&self) -> &'static str {
+        match self {
+            StateSource::GroundTruth => "ground-truth",
+            StateSource::Kf(_) => "kf",
+        }
+    }
+}
+
+/// Estimation error against the simulator's truth over an episode.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct EstimationStats {
+    sq_vel: f64,
+    sq_pos: f64,
+    n: usize,
+}
+
+impl EstimationStats {
+    /// RMS error of the trunk velocity estimate, m/s.
+    pub fn vel_rmse_mps(&self) -> Option<f64> {
+        (self.n > 0).then(|| (self.sq_vel / self.n as f64).sqrt())
+    }
+    /// RMS error of the trunk position estimate, m.
+    pub fn pos_rmse_m(&self) -> Option<f64> {
+        (self.n > 0).then(|| (self.sq_pos / self.n as f64).sqrt())
+    }
+}
+
+/// Time over which a leg's trust ramps from 0 to 1 after it enters stance, s (Cheetah's 0.2
+/// of a 0.15–0.25 s stance).
+pub const TRUST_RAMP_S: f64 = 0.04;
+
+/// Foot force on the ground implied by a leg's joint torques, assuming the leg is static:
+/// τ = −Jᵀ Rᵀ f ⇒ f = −R J⁻ᵀ τ (world frame, N); `None` near a singular leg.
+pub fn foot_force_from_torque(
+    jacobian_body: &nalgebra::Matrix3<f64>,
+    r_world_body: &nalgebra::UnitQuaternion<f64>,
+    tau: &Vector3<f64>,
+) -> Option<Vector3<f64>> {
+    let jt_inv = jacobian_body.transpose().try_inverse()?;
+    Some(-(r_world_body * (jt_inv * tau)))
+}
 
 impl StepRecord<'_> {
     /// Legs carrying the robot: the plan's stance set, or the loaded feet without a plan.
@@ -133,6 +189,11 @@ pub struct ClosedLoop {
     t_start: f64,
     wall_start: Instant,
     loaded: LegMap<bool>,
+    estimator: Option<LinearKf>,
+    estimation: EstimationStats,
+    /// When each leg entered stance (for the estimator's trust), s.
+    stance_since: LegMap<Option<f64>>,
+    last_torques: LegMap<Vector3<f64>>,
 }
 
 /// What one step of the loop ended in.
@@ -143,10 +204,14 @@ pub struct StepOutcome {
 }
 
 impl ClosedLoop {
-    /// Starts an episode from the simulation's current state.
+    /// Starts an episode from the simulation's current state, on ground truth.
     pub fn new(sim: Simulation, pushes: &[Push], limits: FallLimits) -> Self {
         let t_start = sim.time_s();
         ClosedLoop {
+            estimator: None,
+            estimation: EstimationStats::default(),
+            stance_since: LegMap::splat(Some(t_start)),
+            last_torques: LegMap::splat(Vector3::zeros()),
             sim,
             pending: pushes.to_vec(),
             limits,
@@ -158,6 +223,61 @@ impl ClosedLoop {
         }
     }
 
+    /// Starts an episode whose controller sees `source` (the filter starts at the current true
+    /// state: the robot is put down at a known pose).
+    pub fn with_state_source(
+        mut sim: Simulation,
+        pushes: &[Push],
+        limits: FallLimits,
+        source: &StateSource,
+    ) -> Result<Self, eemp_core::config_error::ConfigError> {
+        let estimator = match source {
+            StateSource::GroundTruth => None,
+            StateSource::Kf(config) => {
+                sim.prepare_kinematics();
+                let start = sim.ground_truth_state();
+                Some(LinearKf::new(
+                    config.clone(),
+                    sim.kinematics().clone(),
+                    &start,
+                )?)
+            }
+        };
+        let mut lp = ClosedLoop::new(sim, pushes, limits);
+        lp.estimator = estimator;
+        Ok(lp)
+    }
+
+    pub fn estimation(&self) -> &EstimationStats {
+        &self.estimation
+    }
+
+    /// Each leg's trust as a stance leg: from the plan (ramped over [`TRUST_RAMP_S`] after
+    /// touchdown) or, without a plan, from the load its last torques imply.
+    fn contact_trust(&mut self, controller: &dyn Controller, state: &RobotState) -> LegMap<f64> {
+        let t = state.time_s;
+        match controller.plan() {
+            Some(plan) => LegMap::from_fn(|leg| {
+                if plan.stance[leg] {
+                    let since = *self.stance_since[leg].get_or_insert(t);
+                    ((t - since) / TRUST_RAMP_S).clamp(0.0, 1.0)
+                } else {
+                    self.stance_since[leg] = None;
+                    0.0
+                }
+            }),
+            None => {
+                let kin = self.sim.kinematics();
+                LegMap::from_fn(|leg| {
+                    let j = kin.foot_jacobian_body(leg, &state.joints[leg].q);
+                    foot_force_from_torque(&j, &state.body.r_world_body, &self.last_torques[leg])
+                        .map(|f| ((f.z - 10.0) / 20.0).clamp(0.0, 1.0))
+                        .unwrap_or(0.0)
+                })
+            }
+        }
+    }
+
     /// Starts a new episode on the same simulation (the caller has reset its state).
     pub fn restart(&mut self, pushes: &[Push]) {
         self.pending = pushes.to_vec();
@@ -165,6 +285,13 @@ impl ClosedLoop {
         self.t_start = self.sim.time_s();
         self.wall_start = Instant::now();
         self.loaded = LegMap::splat(true);
+        self.stance_since = LegMap::splat(Some(self.t_start));
+        self.last_torques = LegMap::splat(Vector3::zeros());
+        self.estimation = EstimationStats::default();
+        if let Some(kf) = self.estimator.as_mut() {
+            self.sim.prepare_kinematics();
+            kf.reset(&self.sim.ground_truth_state());
+        }
     }
 
     /// Feet carrying more than [`LOADED_FOOT_N`] after the last step.
@@ -203,7 +330,26 @@ impl ClosedLoop {
         } else {
             self.sim.prepare_kinematics();
         }
-        let state = self.sim.ground_truth_state();
+        let truth = self.sim.ground_truth_state();
+        let state = match self.estimator.is_some() {
+            false => truth,
+            true => {
+                // Encoders and the IMU; the attitude comes from the IMU as on the A1.
+                let trust = self.contact_trust(controller, &truth);
+                let imu = self.sim.imu();
+                let kf = self.estimator.as_mut().expect("checked");
+                let est = kf.update(&EstimatorInput {
+                    time_s: truth.time_s,
+                    imu,
+                    joints: truth.joints,
+                    contact_trust: trust,
+                });
+                self.estimation.sq_vel += (est.body.v_world - truth.body.v_world).norm_squared();
+                self.estimation.sq_pos += (est.body.p_world - truth.body.p_world).norm_squared();
+                self.estimation.n += 1;
+                est
+            }
+        };
         let t1 = Instant::now();
         let feet = feet_world(self.sim.kinematics(), &state);
         let t2 = Instant::now();
@@ -214,8 +360,10 @@ impl ClosedLoop {
             dynamics: &self.sim,
         });
         let t3 = Instant::now();
+        self.last_torques = output.torques;
         observer(&StepRecord {
-            state: &state,
+            state: &truth,
+            estimate: &state,
             plan: controller.plan(),
             command,
             output: &output,
@@ -242,6 +390,7 @@ impl ClosedLoop {
         });
         let t5 = Instant::now();
         let stats = &mut self.stats;
+        let planning = controller.last_planning_time_s();
         if let Some(ev) = &output.mpc_event {
             stats.mpc_solves += 1;
             stats.mpc_solve_times_s.push(ev.solve_time_s);
@@ -249,20 +398,21 @@ impl ClosedLoop {
                 stats.mpc_failures += 1;
             }
             stats.stages.mpc_s += ev.solve_time_s;
-            stats.stages.leg_control_s += (t3 - t2).as_secs_f64() - ev.solve_time_s;
+            stats.stages.leg_control_s += (t3 - t2).as_secs_f64() - ev.solve_time_s - planning;
         } else {
-            stats.stages.leg_control_s += (t3 - t2).as_secs_f64();
+            stats.stages.leg_control_s += (t3 - t2).as_secs_f64() - planning;
         }
+        // Physics includes reading the state (and the estimator, when there is one).
         stats.stages.physics_s += (t1 - t0).as_secs_f64() + (t5 - t4).as_secs_f64();
-        stats.stages.planner_s += (t2 - t1).as_secs_f64();
+        stats.stages.planner_s += (t2 - t1).as_secs_f64() + planning;
         stats.stages.observer_s += (t4 - t3).as_secs_f64();
         stats.steps += 1;
         stats.sim_time_s = stats.steps as f64 * self.sim.timestep_s();
         stats.wall_time_s = self.wall_start.elapsed().as_secs_f64();
-        let fell = self.limits.fallen(&state);
+        let fell = self.limits.fallen(&truth);
         if fell && !stats.fell {
             stats.fell = true;
-            stats.fell_at_s = Some(state.time_s - t_start);
+            stats.fell_at_s = Some(truth.time_s - t_start);
         }
         StepOutcome { fell }
     }
@@ -272,24 +422,21 @@ impl ClosedLoop {
     }
 }
 
-/// Runs the loop for `duration_s` of simulated time or until a fall, with the command of
-/// `command_at(t)`; `observer` sees every step.
+/// Runs `lp` for `duration_s` of simulated time or until a fall, with the command of
+/// `command_at(t)`; `observer` sees every step. Returns the loop (stats, estimation error).
 pub fn run_closed_loop(
-    sim: Simulation,
+    mut lp: ClosedLoop,
     controller: &mut dyn Controller,
     duration_s: f64,
-    pushes: &[Push],
-    limits: FallLimits,
     command_at: impl Fn(f64) -> VelocityCommand,
     mut observer: impl FnMut(&StepRecord),
-) -> (Simulation, LoopStats) {
-    let steps = (duration_s / sim.timestep_s()).round() as usize;
-    let mut lp = ClosedLoop::new(sim, pushes, limits);
+) -> ClosedLoop {
+    let steps = (duration_s / lp.sim().timestep_s()).round() as usize;
     for _ in 0..steps {
         let command = command_at(lp.sim().time_s());
         if lp.step(controller, command, &mut observer).fell {
             break;
         }
     }
-    lp.into_parts()
+    lp
 }

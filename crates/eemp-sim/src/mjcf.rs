@@ -6,7 +6,8 @@
 //! robot geoms collide with the floor only (no leg–leg contacts: the planner never crosses legs,
 //! and it saves collision checks); the floor has contact priority, so its friction is the one
 //! used by every foot (that is what makes `floor_friction` the knob for slippery ground);
-//! elliptic friction cones with impratio 100 and stiff foot contacts (Menagerie's solimp).
+//! elliptic friction cones with impratio 100 and stiff foot contacts (Menagerie's solimp); an IMU
+//! (attitude, gyro, accelerometer) at the trunk origin.
 
 use eemp_core::leg::Leg;
 use eemp_core::robot::{LinkConfig, LinkKind, RobotConfig};
@@ -118,11 +119,17 @@ pub fn robot_mjcf(robot: &RobotConfig, extras: &SceneExtras) -> String {
       <freejoint name="root"/>
       <inertial mass="{tm}" pos="{cx} {cy} {cz}" fullinertia="{i0} {i1} {i2} {i3} {i4} {i5}"/>
       <geom name="trunk_geom" type="box" size="{half}"/>
+      <site name="imu" pos="0 0 0" size="0.01"/>
       <camera name="track" mode="trackcom" pos="0.4 -1.6 0.5" xyaxes="1 0.25 0 -0.1 0.3 1"/>{legs}
     </body>
   </worldbody>
   <actuator>
 {actuators}  </actuator>
+  <sensor>
+    <framequat name="imu_quat" objtype="site" objname="imu"/>
+    <gyro name="imu_gyro" site="imu"/>
+    <accelerometer name="imu_accel" site="imu"/>
+  </sensor>
 </mujoco>
 "#,
         name = robot.name,

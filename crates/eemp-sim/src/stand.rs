@@ -2,7 +2,7 @@
 //! body-motion profile on four stance legs.
 
 use crate::backend::{SimError, Simulation};
-use crate::closed_loop::{run_closed_loop, FallLimits, LoopStats, Push, StepRecord};
+use crate::closed_loop::{run_closed_loop, ClosedLoop, FallLimits, LoopStats, Push, StepRecord};
 use crate::mjcf::SceneExtras;
 use eemp_core::config_error::ConfigError;
 use eemp_core::controller::{ControllerConfig, LocomotionController};
@@ -63,15 +63,14 @@ pub fn run_stand(
         controller_config.mpc.dt_s,
     )?;
     let mut controller = StandController::new(planner, locomotion);
-    let (_, stats) = run_closed_loop(
-        sim,
+    let lp = run_closed_loop(
+        ClosedLoop::new(sim, pushes, FallLimits::default()),
         &mut controller,
         duration_s,
-        pushes,
-        FallLimits::default(),
         |_| VelocityCommand::default(),
         observer,
     );
+    let stats = lp.stats().clone();
     Ok(StandRun {
         stats,
         planner: controller.planner,

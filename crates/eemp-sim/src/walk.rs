@@ -2,7 +2,10 @@
 //! velocity (constant or a piecewise profile).
 
 use crate::backend::Simulation;
-use crate::closed_loop::{run_closed_loop, FallLimits, LoopStats, Push, StepRecord};
+use crate::closed_loop::{
+    run_closed_loop, ClosedLoop, EstimationStats, FallLimits, LoopStats, Push, StateSource,
+    StepRecord,
+};
 use crate::mjcf::SceneExtras;
 use crate::stand::ScenarioError;
 use eemp_core::config_error::{check_range, ConfigError};
@@ -124,6 +127,8 @@ pub struct WalkSpec {
     /// trunk velocity ±0.05 m/s per horizontal axis), so repeated runs of one grid point sample
     /// different trajectories; the same seed always gives the same run.
     pub seed: u64,
+    /// What the controller sees: the simulator's state or the Kalman filter's estimate.
+    pub state_source: StateSource,
 }
 
 impl WalkSpec {
@@ -145,6 +150,7 @@ impl WalkSpec {
             pushes: Vec::new(),
             floor_friction: None,
             seed: 0,
+            state_source: StateSource::GroundTruth,
         }
     }
 
@@ -186,6 +192,9 @@ impl WalkSpec {
         if let Some(mu) = self.floor_friction {
             check_range("floor_friction", mu, 0.05, 5.0)?;
         }
+        if let StateSource::Kf(kf) = &self.state_source {
+            kf.validate()?;
+        }
         Ok(())
     }
 }
@@ -194,6 +203,8 @@ impl WalkSpec {
 #[derive(Clone, Debug)]
 pub struct WalkRun {
     pub stats: LoopStats,
+    /// Estimation error against the truth (empty on ground truth).
+    pub estimation: EstimationStats,
     pub metrics: WalkMetrics,
     pub steps: LegMap<usize>,
 }
@@ -322,12 +333,16 @@ pub fn run_walk_with(
     let mass = robot.total_mass_kg();
     let mut touchdowns = LegMap::splat(0usize);
     let mut was_down: Option<LegMap<bool>> = None;
-    let (_, stats) = run_closed_loop(
+    let lp = ClosedLoop::with_state_source(
         sim,
-        controller,
-        spec.duration_s,
         &spec.pushes,
         FallLimits::default(),
+        &spec.state_source,
+    )?;
+    let lp = run_closed_loop(
+        lp,
+        controller,
+        spec.duration_s,
         |t| spec.profile.command_at(t),
         |record| {
             let t = record.state.time_s;
@@ -363,7 +378,8 @@ pub fn run_walk_with(
     // touchdowns (a foot becoming loaded, see `LOADED_FOOT_N`).
     let steps = controller.steps().unwrap_or(touchdowns);
     Ok(WalkRun {
-        stats,
+        stats: lp.stats().clone(),
+        estimation: lp.estimation().clone(),
         metrics: metrics.finish(mass),
         steps,
     })

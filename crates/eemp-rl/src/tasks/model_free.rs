@@ -740,6 +740,7 @@ impl Env for ModelFreeEnv {
         let state_before = self.loop_.sim().ground_truth_state();
         self.pd.targets = joint_targets(cfg, &self.q0, action);
         let mut fell = false;
+        let mut unstable = false;
         let mut last_tau = [0.0; 12];
         for _ in 0..self.substeps {
             let mut tau_seen = None;
@@ -748,6 +749,11 @@ impl Env for ModelFreeEnv {
             });
             if let Some(t) = tau_seen {
                 last_tau = t;
+            }
+            if self.loop_.sim_mut().take_instability() {
+                unstable = true;
+                fell = true;
+                break;
             }
             if out.fell || self.loop_.sim().trunk_contact() {
                 fell = true;
@@ -810,6 +816,8 @@ impl Env for ModelFreeEnv {
             *t = v * w * dt;
             reward += *t;
         }
+        // (NaN.max(0) is 0: check before clipping, so a broken step is seen as one.)
+        let reward_finite = reward.is_finite();
         if cfg.only_positive_rewards {
             reward = reward.max(0.0);
         }
@@ -827,7 +835,7 @@ impl Env for ModelFreeEnv {
             reward,
             terminated: fell,
             truncated: !fell && self.steps >= self.max_steps,
-            invalid: !state.body.is_finite(),
+            invalid: !state.body.is_finite() || !reward_finite || unstable,
         }
     }
 

@@ -1,0 +1,384 @@
+//! State estimation from the robot's own senses (no simulator inside): attitude from the IMU,
+//! and a linear Kalman filter for the trunk's position and velocity that fuses the IMU's
+//! acceleration with leg kinematics, trusting a leg by where it is in its stance (the structure
+//! of MIT Cheetah-Software's `LinearKFPositionVelocityEstimator`, with legged_control's ½dt²
+//! position input; values in `../shared/reference/estimation-hardware-notes.md` §1).
+//!
+//! State (18, world frame): trunk position p, trunk velocity v, the four foot positions.
+//! Measurements (28): per leg p − p_foot = −R·p_foot_body (3), v = −R·(ω × p_foot_body + J q̇) (3),
+//! and the foot's height = its nominal height on flat ground (1). A leg's velocity and height
+//! rows and its foot's process noise are inflated by 1 + 100·(1 − trust): a swinging foot moves,
+//! so it neither measures the trunk's velocity nor stays on the ground.
+
+use crate::body_state::{BodyState, LegJointState, RobotState};
+use crate::config_error::{check_range, ConfigError};
+use crate::kinematics::LegKinematics;
+use crate::leg::{Leg, LegMap};
+use nalgebra::{SMatrix, SVector, UnitQuaternion, Vector3};
+use serde::{Deserialize, Serialize};
+
+/// What an IMU reports, body frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ImuReading {
+    /// Attitude (rotates body vectors into the world frame).
+    pub r_world_body: UnitQuaternion<f64>,
+    /// Angular velocity, rad/s.
+    pub gyro_body: Vector3<f64>,
+    /// Specific force (acceleration minus gravity), m/s²: (0, 0, 9.81) at rest.
+    pub accel_body: Vector3<f64>,
+}
+
+/// What the estimator reads each step besides the IMU.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EstimatorInput {
+    pub time_s: f64,
+    pub imu: ImuReading,
+    pub joints: LegMap<LegJointState>,
+    /// How much each leg is trusted as a stance leg, 0 (swing) … 1 (mid-stance).
+    pub contact_trust: LegMap<f64>,
+}
+
+/// Noise parameters (standard deviations or their squares as named), Cheetah-Software's values.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct KfConfig {
+    pub imu_process_noise_position: f64,
+    pub imu_process_noise_velocity: f64,
+    pub foot_process_noise_position: f64,
+    pub foot_sensor_noise_position: f64,
+    pub foot_sensor_noise_velocity: f64,
+    pub foot_height_sensor_noise: f64,
+    /// Height of a foot centre above flat ground in stance, m (the foot radius).
+    pub foot_height_m: f64,
+    /// Factor by which an untrusted leg's noise grows (Cheetah's high_suspect_number).
+    pub suspect_factor: f64,
+}
+
+impl Default for KfConfig {
+    fn default() -> Self {
+        KfConfig {
+            imu_process_noise_position: 0.02,
+            imu_process_noise_velocity: 0.02,
+            foot_process_noise_position: 0.002,
+            foot_sensor_noise_position: 0.001,
+            foot_sensor_noise_velocity: 0.1,
+            foot_height_sensor_noise: 0.001,
+            foot_height_m: 0.02,
+            suspect_factor: 100.0,
+        }
+    }
+}
+
+impl KfConfig {
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        for (name, v) in [
+            (
+                "kf.imu_process_noise_position",
+                self.imu_process_noise_position,
+            ),
+            (
+                "kf.imu_process_noise_velocity",
+                self.imu_process_noise_velocity,
+            ),
+            (
+                "kf.foot_process_noise_position",
+                self.foot_process_noise_position,
+            ),
+            (
+                "kf.foot_sensor_noise_position",
+                self.foot_sensor_noise_position,
+            ),
+            (
+                "kf.foot_sensor_noise_velocity",
+                self.foot_sensor_noise_velocity,
+            ),
+            ("kf.foot_height_sensor_noise", self.foot_height_sensor_noise),
+        ] {
+            check_range(name, v, 1e-9, 100.0)?;
+        }
+        check_range("kf.foot_height_m", self.foot_height_m, 0.0, 0.2)?;
+        check_range("kf.suspect_factor", self.suspect_factor, 1.0, 1e6)
+    }
+}
+
+/// Cheetah's trust window: ramps 0 → 1 over the first `window` of stance and 1 → 0 over the
+/// last (`phase` 0…1 through stance; a swing leg has trust 0).
+pub fn stance_trust(phase: f64, window: f64) -> f64 {
+    let p = phase.clamp(0.0, 1.0);
+    if p < window {
+        p / window
+    } else if p > 1.0 - window {
+        (1.0 - p) / window
+    } else {
+        1.0
+    }
+}
+
+type State = SVector<f64, 18>;
+type Cov = SMatrix<f64, 18, 18>;
+
+const GRAVITY: Vector3<f64> = Vector3::new(0.0, 0.0, -9.81);
+
+/// The linear Kalman filter for trunk position and velocity.
+#[derive(Clone, Debug)]
+pub struct LinearKf {
+    config: KfConfig,
+    kinematics: LegKinematics,
+    x: State,
+    p: Cov,
+    last_time_s: Option<f64>,
+}
+
+impl LinearKf {
+    /// Starts at `p_world` at rest with the feet where the kinematics put them.
+    pub fn new(
+        config: KfConfig,
+        kinematics: LegKinematics,
+        start: &RobotState,
+    ) -> Result<Self, ConfigError> {
+        config.validate()?;
+        let mut kf = LinearKf {
+            config,
+            kinematics,
+            x: State::zeros(),
+            p: Cov::identity() * 100.0,
+            last_time_s: None,
+        };
+        kf.reset(start);
+        Ok(kf)
+    }
+
+    /// Re-initialises from a known state (a start pose).
+    pub fn reset(&mut self, s: &RobotState) {
+        self.x.fixed_rows_mut::<3>(0).copy_from(&s.body.p_world);
+        self.x.fixed_rows_mut::<3>(3).copy_from(&s.body.v_world);
+        for leg in Leg::ALL {
+            let p = s.body.p_world
+                + s.body.r_world_body * self.kinematics.foot_position_body(leg, &s.joints[leg].q);
+            self.x
+                .fixed_rows_mut::<3>(6 + 3 * leg.index())
+                .copy_from(&p);
+        }
+        self.p = Cov::identity() * 1e-4;
+        self.last_time_s = Some(s.time_s);
+    }
+
+    pub fn position_world(&self) -> Vector3<f64> {
+        self.x.fixed_rows::<3>(0).into()
+    }
+
+    pub fn velocity_world(&self) -> Vector3<f64> {
+        self.x.fixed_rows::<3>(3).into()
+    }
+
+    pub fn foot_world(&self, leg: Leg) -> Vector3<f64> {
+        self.x.fixed_rows::<3>(6 + 3 * leg.index()).into()
+    }
+
+    /// One predict + update; returns the estimated robot state.
+    pub fn update(&mut self, input: &EstimatorInput) -> RobotState {
+        let dt = match self.last_time_s {
+            Some(t) => (input.time_s - t).clamp(0.0, 0.1),
+            None => 0.0,
+        };
+        self.last_time_s = Some(input.time_s);
+        let c = &self.config;
+        let r = input.imu.r_world_body;
+        let omega_world = r * input.imu.gyro_body;
+        // Predict: p += v dt + ½ a dt², v += a dt, feet stay.
+        let a_world = r * input.imu.accel_body + GRAVITY;
+        let v = self.velocity_world();
+        let p_new = self.position_world() + v * dt + a_world * (0.5 * dt * dt);
+        self.x.fixed_rows_mut::<3>(0).copy_from(&p_new);
+        self.x.fixed_rows_mut::<3>(3).copy_from(&(v + a_world * dt));
+        let mut a = Cov::identity();
+        for i in 0..3 {
+            a[(i, 3 + i)] = dt;
+        }
+        let mut q = Cov::zeros();
+        for i in 0..3 {
+            q[(i, i)] = dt / 20.0 * c.imu_process_noise_position;
+            q[(3 + i, 3 + i)] = dt * 9.81 / 20.0 * c.imu_process_noise_velocity;
+        }
+        for leg in Leg::ALL {
+            let suspect = 1.0 + (1.0 - input.contact_trust[leg].clamp(0.0, 1.0)) * c.suspect_factor;
+            for i in 0..3 {
+                let k = 6 + 3 * leg.index() + i;
+                q[(k, k)] = dt * c.foot_process_noise_position * suspect;
+            }
+        }
+        self.p = a * self.p * a.transpose() + q;
+
+        // Measure: C x vs y, with innovation covariance S = C P Cᵀ + R.
+        let mut cm = SMatrix::<f64, 28, 18>::zeros();
+        let mut y = SVector::<f64, 28>::zeros();
+        let mut rn = SVector::<f64, 28>::zeros();
+        for leg in Leg::ALL {
+            let i = leg.index();
+            let j = &input.joints[leg];
+            let trust = input.contact_trust[leg].clamp(0.0, 1.0);
+            let suspect = 1.0 + (1.0 - trust) * c.suspect_factor;
+            let p_rel_body = self.kinematics.foot_position_body(leg, &j.q);
+            let v_rel_body = self.kinematics.foot_jacobian_body(leg, &j.q) * j.qd;
+            let p_rel_world = r * p_rel_body;
+            // Trunk velocity if this foot is still: v = −(ω × p_rel + R J q̇).
+            let v_meas = -(omega_world.cross(&p_rel_world) + r * v_rel_body);
+            let v_hat = self.velocity_world();
+            let foot_z_hat = self.x[6 + 3 * i + 2];
+            for k in 0..3 {
+                cm[(3 * i + k, k)] = 1.0;
+                cm[(3 * i + k, 6 + 3 * i + k)] = -1.0;
+                y[3 * i + k] = -p_rel_world[k];
+                rn[3 * i + k] = c.foot_sensor_noise_position;
+                cm[(12 + 3 * i + k, 3 + k)] = 1.0;
+                y[12 + 3 * i + k] = (1.0 - trust) * v_hat[k] + trust * v_meas[k];
+                rn[12 + 3 * i + k] = c.foot_sensor_noise_velocity * suspect;
+            }
+            cm[(24 + i, 6 + 3 * i + 2)] = 1.0;
+            y[24 + i] = (1.0 - trust) * foot_z_hat + trust * c.foot_height_m;
+            rn[24 + i] = c.foot_height_sensor_noise * suspect;
+        }
+        let pct = self.p * cm.transpose();
+        let s = cm * pct + SMatrix::<f64, 28, 28>::from_diagonal(&rn);
+        if let Some(chol) = s.cholesky() {
+            let innovation = y - cm * self.x;
+            let k_gain = chol.solve(&pct.transpose()).transpose();
+            self.x += k_gain * innovation;
+            self.p = (Cov::identity() - k_gain * cm) * self.p;
+            self.p = (self.p + self.p.transpose()) * 0.5;
+        }
+        RobotState {
+            time_s: input.time_s,
+            body: BodyState {
+                p_world: self.position_world(),
+                r_world_body: r,
+                v_world: self.velocity_world(),
+                omega_world,
+            },
+            joints: input.joints,
+        }
+    }
+
+    /// Whether every state and covariance entry is finite.
+    pub fn is_finite(&self) -> bool {
+        self.x.iter().all(|v| v.is_finite()) && self.p.iter().all(|v| v.is_finite())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::robot::RobotConfig;
+
+    /// A trunk gliding at constant velocity over four planted feet (legs moving accordingly by
+    /// IK): the IMU reads gravity only, the legs read the motion.
+    fn gliding(
+        v: Vector3<f64>,
+        t: f64,
+        kin: &LegKinematics,
+        feet: &LegMap<Vector3<f64>>,
+    ) -> RobotState {
+        let p = Vector3::new(0.0, 0.0, 0.28) + v * t;
+        let mut joints = LegMap::splat(LegJointState::default());
+        for leg in Leg::ALL {
+            let q = kin.inverse(leg, &(feet[leg] - p)).unwrap();
+            // q̇ from the foot staying put: J q̇ = −v (body frame = world frame here).
+            let qd = kin.foot_jacobian_body(leg, &q).try_inverse().unwrap() * (-v);
+            joints[leg] = LegJointState { q, qd };
+        }
+        RobotState {
+            time_s: t,
+            body: BodyState {
+                p_world: p,
+                r_world_body: UnitQuaternion::identity(),
+                v_world: v,
+                omega_world: Vector3::zeros(),
+            },
+            joints,
+        }
+    }
+
+    #[test]
+    fn tracks_a_trunk_moving_over_planted_feet_from_a_wrong_velocity() {
+        let robot = RobotConfig::a1();
+        let kin = LegKinematics::new(&robot);
+        let v = Vector3::new(0.2, -0.05, 0.0);
+        let feet = LegMap::from_fn(|leg| {
+            let mut f = kin.nominal_foot_body(leg) + Vector3::new(0.0, 0.0, 0.28);
+            f.z = 0.02;
+            f
+        });
+        let mut start = gliding(v, 0.0, &kin, &feet);
+        start.body.v_world = Vector3::zeros(); // the filter starts wrong
+        let mut kf = LinearKf::new(KfConfig::default(), kin.clone(), &start).unwrap();
+        let dt = 0.002;
+        let mut est = start;
+        for k in 1..=500 {
+            let truth = gliding(v, k as f64 * dt, &kin, &feet);
+            est = kf.update(&EstimatorInput {
+                time_s: truth.time_s,
+                imu: ImuReading {
+                    r_world_body: UnitQuaternion::identity(),
+                    gyro_body: Vector3::zeros(),
+                    accel_body: Vector3::new(0.0, 0.0, 9.81),
+                },
+                joints: truth.joints,
+                contact_trust: LegMap::splat(1.0),
+            });
+        }
+        let truth = gliding(v, 1.0, &kin, &feet);
+        assert!(
+            (est.body.v_world - v).norm() < 1e-3,
+            "v {:?}",
+            est.body.v_world
+        );
+        assert!(
+            (est.body.p_world - truth.body.p_world).norm() < 0.01,
+            "p {:?}",
+            est.body.p_world
+        );
+        assert!(kf.is_finite());
+    }
+
+    #[test]
+    fn the_trust_window_ramps_in_and_out_of_stance() {
+        assert_eq!(stance_trust(0.0, 0.2), 0.0);
+        assert!((stance_trust(0.1, 0.2) - 0.5).abs() < 1e-12);
+        assert_eq!(stance_trust(0.5, 0.2), 1.0);
+        assert!((stance_trust(0.95, 0.2) - 0.25).abs() < 1e-12);
+        assert_eq!(stance_trust(1.5, 0.2), 0.0);
+    }
+
+    #[test]
+    fn an_untrusted_leg_does_not_pull_the_velocity() {
+        // All legs in swing: the velocity comes from the IMU alone (here: unchanged).
+        let robot = RobotConfig::a1();
+        let kin = LegKinematics::new(&robot);
+        let feet = LegMap::from_fn(|leg| {
+            let mut f = kin.nominal_foot_body(leg) + Vector3::new(0.0, 0.0, 0.28);
+            f.z = 0.02;
+            f
+        });
+        let start = gliding(Vector3::new(0.3, 0.0, 0.0), 0.0, &kin, &feet);
+        let mut kf = LinearKf::new(KfConfig::default(), kin.clone(), &start).unwrap();
+        // Legs report a standing trunk, but nobody trusts them.
+        let still = gliding(Vector3::zeros(), 0.0, &kin, &feet);
+        for k in 1..=50 {
+            kf.update(&EstimatorInput {
+                time_s: k as f64 * 0.002,
+                imu: ImuReading {
+                    r_world_body: UnitQuaternion::identity(),
+                    gyro_body: Vector3::zeros(),
+                    accel_body: Vector3::new(0.0, 0.0, 9.81),
+                },
+                joints: still.joints,
+                contact_trust: LegMap::splat(0.0),
+            });
+        }
+        assert!(
+            (kf.velocity_world().x - 0.3).abs() < 0.02,
+            "{:?}",
+            kf.velocity_world()
+        );
+    }
+}
