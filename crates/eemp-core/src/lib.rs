@@ -8,6 +8,7 @@
 //!   [`eemp_controller`] (EEMP walking and standing), [`joint_pd`] (joint PD, how policies act).
 //! - [`estimator`]: attitude from the IMU and a linear Kalman filter for trunk position and
 //!   velocity from IMU + leg kinematics (what the robot knows of itself).
+//! - [`hardware`]: the A1's legacy low-level UDP protocol (datagram codec and CRC).
 //! - [`metrics`]: cost of transport (eq. 8) and force manipulability (eq. 9).
 
 // Horizon and block indices (k, l, j) are the mathematics here; iterator chains would hide them.
@@ -21,6 +22,7 @@ pub mod controller;
 pub mod convex_mpc;
 pub mod eemp_controller;
 pub mod estimator;
+pub mod hardware;
 pub mod joint_pd;
 pub mod kinematics;
 pub mod leg;
