@@ -350,7 +350,7 @@ impl LowState {
         check(bytes, LOW_STATE_LEN)?;
         let mut r = Reader { buf: bytes, at: 0 };
         let header = r.header();
-        let mut f3 = |r: &mut Reader| [r.f32(), r.f32(), r.f32()];
+        let f3 = |r: &mut Reader| [r.f32(), r.f32(), r.f32()];
         let imu = Imu {
             quaternion: [r.f32(), r.f32(), r.f32(), r.f32()],
             gyroscope: f3(&mut r),
