@@ -1,0 +1,360 @@
+//! The safety layer between every controller and the robot: it sees each joint command before
+//! it is sent and the last measured state, and clamps, ramps or replaces the command.
+//!
+//! In order, each step: watchdog (no state for `watchdog_s` → damping), e-stop (latched until
+//! [`SafetyLayer::reset`]), power protection (the SDK's PowerProtect: Σ|τ·q̇| over the limit for
+//! more than 5 of the last checks → damping, latched), soft start (targets blended from the pose
+//! at start to the controller's over `soft_start_s`), joint position limits, torque limits.
+//! Every intervention is returned to the caller for its log.
+
+use crate::config_error::{check_range, ConfigError};
+use crate::leg::{Leg, LegMap};
+use crate::robot::RobotConfig;
+use nalgebra::Vector3;
+use serde::{Deserialize, Serialize};
+
+/// One joint's command in the motor's own terms: τ = τ_ff + K_p (q* − q) + K_d (q̇* − q̇).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct JointCommand {
+    pub q: f64,
+    pub dq: f64,
+    pub kp: f64,
+    pub kd: f64,
+    pub tau: f64,
+}
+
+/// Commands for the 12 joints.
+pub type RobotCommand = LegMap<[JointCommand; 3]>;
+
+/// What the layer reads of the robot.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MeasuredJoints {
+    pub time_s: f64,
+    pub q: LegMap<Vector3<f64>>,
+    pub dq: LegMap<Vector3<f64>>,
+    /// Torques the motors report, N·m.
+    pub tau: LegMap<Vector3<f64>>,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SafetyConfig {
+    /// No state for this long → damping mode, s.
+    pub watchdog_s: f64,
+    /// Mechanical power limit Σ|τ·q̇|, W (the SDK's 1000 W × factor/10).
+    pub power_limit_w: f64,
+    /// Blend time from the start pose into the controller's targets, s.
+    pub soft_start_s: f64,
+    /// Damping of the damping mode, N·m·s/rad.
+    pub damping_kd: f64,
+    /// Torque limit, N·m (the motor's).
+    pub torque_limit_nm: f64,
+    /// Margin kept inside the joint ranges, rad.
+    pub joint_margin_rad: f64,
+}
+
+impl Default for SafetyConfig {
+    fn default() -> Self {
+        SafetyConfig {
+            watchdog_s: 0.02,
+            // PowerProtect(…, 5), as legged_control runs the A1.
+            power_limit_w: 500.0,
+            soft_start_s: 2.0,
+            damping_kd: 3.0,
+            torque_limit_nm: 33.5,
+            joint_margin_rad: 0.02,
+        }
+    }
+}
+
+impl SafetyConfig {
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        check_range("safety.watchdog_s", self.watchdog_s, 0.001, 1.0)?;
+        check_range("safety.power_limit_w", self.power_limit_w, 1.0, 2000.0)?;
+        check_range("safety.soft_start_s", self.soft_start_s, 0.0, 30.0)?;
+        check_range("safety.damping_kd", self.damping_kd, 0.0, 20.0)?;
+        check_range("safety.torque_limit_nm", self.torque_limit_nm, 0.0, 33.5)?;
+        check_range("safety.joint_margin_rad", self.joint_margin_rad, 0.0, 0.3)
+    }
+}
+
+/// Something the layer did, for the log.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Intervention {
+    Watchdog {
+        silent_s: f64,
+    },
+    EStop,
+    PowerProtect {
+        power_w: f64,
+    },
+    SoftStart {
+        blend: f64,
+    },
+    PositionClamped {
+        leg: Leg,
+        joint: usize,
+        asked: f64,
+        sent: f64,
+    },
+    TorqueClamped {
+        leg: Leg,
+        joint: usize,
+        asked: f64,
+        sent: f64,
+    },
+}
+
+/// Why the robot is latched in damping mode (until `reset`; the watchdog is not latched: it
+/// lets go as soon as states arrive again).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Damping {
+    EStop,
+    PowerProtect,
+}
+
+pub struct SafetyLayer {
+    config: SafetyConfig,
+    ranges: [[f64; 2]; 3],
+    start: Option<(f64, LegMap<Vector3<f64>>)>,
+    last_state: Option<MeasuredJoints>,
+    power_count: u32,
+    latched: Option<Damping>,
+}
+
+fn damping(kd: f64) -> RobotCommand {
+    LegMap::splat(
+        [JointCommand {
+            kd,
+            ..Default::default()
+        }; 3],
+    )
+}
+
+impl SafetyLayer {
+    pub fn new(robot: &RobotConfig, config: SafetyConfig) -> Result<Self, ConfigError> {
+        config.validate()?;
+        let l = &robot.leg;
+        Ok(SafetyLayer {
+            ranges: [l.abduction_range_rad, l.thigh_range_rad, l.calf_range_rad],
+            config,
+            start: None,
+            last_state: None,
+            power_count: 0,
+            latched: None,
+        })
+    }
+
+    /// The latched damping state, if any.
+    pub fn damping(&self) -> Option<Damping> {
+        self.latched
+    }
+
+    /// Operator's e-stop (remote button, keyboard): damping until [`SafetyLayer::reset`].
+    pub fn estop(&mut self) {
+        self.latched = Some(Damping::EStop);
+    }
+
+    /// Clears a latched stop; the next command soft-starts again.
+    pub fn reset(&mut self) {
+        self.latched = None;
+        self.power_count = 0;
+        self.start = None;
+    }
+
+    /// A state arrived from the robot.
+    pub fn observe(&mut self, state: MeasuredJoints) {
+        // PowerProtect: counts up while over the limit (to 10), down otherwise; > 5 trips.
+        let p: f64 = Leg::ALL
+            .iter()
+            .map(|l| {
+                (0..3)
+                    .map(|j| (state.tau[*l][j] * state.dq[*l][j]).abs())
+                    .sum::<f64>()
+            })
+            .sum();
+        if p > self.config.power_limit_w {
+            self.power_count = (self.power_count + 1).min(10);
+        } else {
+            self.power_count = self.power_count.saturating_sub(1);
+        }
+        if self.power_count > 5 && self.latched.is_none() {
+            self.latched = Some(Damping::PowerProtect);
+        }
+        self.last_state = Some(state);
+    }
+
+    /// The command to send at `now_s` for the controller's `cmd`, and what was changed.
+    pub fn filter(&mut self, now_s: f64, cmd: &RobotCommand) -> (RobotCommand, Vec<Intervention>) {
+        let mut log = Vec::new();
+        let c = &self.config;
+        let Some(state) = self.last_state else {
+            log.push(Intervention::Watchdog {
+                silent_s: f64::INFINITY,
+            });
+            return (damping(c.damping_kd), log);
+        };
+        let silent = now_s - state.time_s;
+        if silent > c.watchdog_s {
+            log.push(Intervention::Watchdog { silent_s: silent });
+            return (damping(c.damping_kd), log);
+        }
+        match self.latched {
+            Some(Damping::EStop) => {
+                log.push(Intervention::EStop);
+                return (damping(c.damping_kd), log);
+            }
+            Some(Damping::PowerProtect) => {
+                let p = Leg::ALL
+                    .iter()
+                    .map(|l| {
+                        (0..3)
+                            .map(|j| (state.tau[*l][j] * state.dq[*l][j]).abs())
+                            .sum::<f64>()
+                    })
+                    .sum();
+                log.push(Intervention::PowerProtect { power_w: p });
+                return (damping(c.damping_kd), log);
+            }
+            None => {}
+        }
+        let (t0, q0) = *self.start.get_or_insert((now_s, state.q));
+        let blend = if c.soft_start_s > 0.0 {
+            ((now_s - t0) / c.soft_start_s).clamp(0.0, 1.0)
+        } else {
+            1.0
+        };
+        if blend < 1.0 {
+            log.push(Intervention::SoftStart { blend });
+        }
+        let mut out = *cmd;
+        for leg in Leg::ALL {
+            for j in 0..3 {
+                let o = &mut out[leg][j];
+                if blend < 1.0 {
+                    // From holding the start pose to the controller's command.
+                    o.q = q0[leg][j] + (o.q - q0[leg][j]) * blend;
+                    o.tau *= blend;
+                }
+                let [lo, hi] = self.ranges[j];
+                let (lo, hi) = (lo + c.joint_margin_rad, hi - c.joint_margin_rad);
+                if o.kp > 0.0 && !(lo..=hi).contains(&o.q) {
+                    let sent = o.q.clamp(lo, hi);
+                    log.push(Intervention::PositionClamped {
+                        leg,
+                        joint: j,
+                        asked: o.q,
+                        sent,
+                    });
+                    o.q = sent;
+                }
+                let lim = c.torque_limit_nm;
+                if !(o.tau.abs() <= lim) {
+                    let sent = if o.tau.is_nan() {
+                        0.0
+                    } else {
+                        o.tau.clamp(-lim, lim)
+                    };
+                    log.push(Intervention::TorqueClamped {
+                        leg,
+                        joint: j,
+                        asked: o.tau,
+                        sent,
+                    });
+                    o.tau = sent;
+                }
+            }
+        }
+        (out, log)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn state(t: f64, q: f64, dq: f64, tau: f64) -> MeasuredJoints {
+        MeasuredJoints {
+            time_s: t,
+            q: LegMap::splat(Vector3::new(0.0, q, -1.8)),
+            dq: LegMap::splat(Vector3::repeat(dq)),
+            tau: LegMap::splat(Vector3::repeat(tau)),
+        }
+    }
+
+    fn stand(q: f64, tau: f64) -> RobotCommand {
+        LegMap::splat([0.0, q, -1.8].map(|q| JointCommand {
+            q,
+            kp: 40.0,
+            kd: 1.0,
+            tau,
+            ..Default::default()
+        }))
+    }
+
+    #[test]
+    fn no_state_or_a_silent_robot_gets_damping() {
+        let mut s = SafetyLayer::new(&RobotConfig::a1(), SafetyConfig::default()).unwrap();
+        let (out, log) = s.filter(0.0, &stand(0.9, 0.0));
+        assert_eq!(out, damping(3.0));
+        assert!(matches!(log[0], Intervention::Watchdog { .. }));
+        s.observe(state(0.0, 0.9, 0.0, 0.0));
+        assert_ne!(s.filter(0.01, &stand(0.9, 0.0)).0, damping(3.0));
+        let (out, log) = s.filter(0.05, &stand(0.9, 0.0));
+        assert_eq!(out, damping(3.0));
+        assert!(
+            matches!(log[0], Intervention::Watchdog { silent_s } if (silent_s - 0.05).abs() < 1e-12)
+        );
+    }
+
+    #[test]
+    fn soft_start_blends_from_the_start_pose_and_limits_clamp() {
+        let mut s = SafetyLayer::new(&RobotConfig::a1(), SafetyConfig::default()).unwrap();
+        s.observe(state(0.0, 1.5, 0.0, 0.0));
+        let (out, _) = s.filter(0.0, &stand(0.9, 10.0));
+        assert!((out[Leg::FrontLeft][1].q - 1.5).abs() < 1e-12);
+        assert_eq!(out[Leg::FrontLeft][1].tau, 0.0);
+        s.observe(state(1.0, 1.2, 0.0, 0.0));
+        let (out, log) = s.filter(1.0, &stand(0.9, 10.0));
+        assert!(
+            (out[Leg::FrontLeft][1].q - 1.2).abs() < 1e-12,
+            "half way from 1.5 to 0.9"
+        );
+        assert!(log.iter().any(
+            |i| matches!(i, Intervention::SoftStart { blend } if (*blend - 0.5).abs() < 1e-12)
+        ));
+        s.observe(state(3.0, 0.9, 0.0, 0.0));
+        let (out, log) = s.filter(3.0, &stand(5.0, 50.0));
+        assert!((out[Leg::RearRight][1].q - (4.18879 - 0.02)).abs() < 1e-9);
+        assert_eq!(out[Leg::RearRight][1].tau, 33.5);
+        assert!(log
+            .iter()
+            .any(|i| matches!(i, Intervention::PositionClamped { joint: 1, .. })));
+        assert!(log
+            .iter()
+            .any(|i| matches!(i, Intervention::TorqueClamped { .. })));
+        let (out, _) = s.filter(3.0, &stand(0.9, f64::NAN));
+        assert_eq!(out[Leg::FrontRight][0].tau, 0.0);
+    }
+
+    #[test]
+    fn sustained_overpower_and_the_estop_latch_damping_until_reset() {
+        let mut s = SafetyLayer::new(&RobotConfig::a1(), SafetyConfig::default()).unwrap();
+        // 12 joints × 10 N·m × 5 rad/s = 600 W > 500 W: trips after 6 checks.
+        for k in 0..5 {
+            s.observe(state(k as f64 * 0.002, 0.9, 5.0, 10.0));
+        }
+        assert_eq!(s.damping(), None);
+        s.observe(state(0.01, 0.9, 5.0, 10.0));
+        assert_eq!(s.damping(), Some(Damping::PowerProtect));
+        assert_eq!(s.filter(0.01, &stand(0.9, 0.0)).0, damping(3.0));
+        s.reset();
+        s.observe(state(0.012, 0.9, 0.0, 0.0));
+        assert_ne!(s.filter(0.012, &stand(0.9, 0.0)).0, damping(3.0));
+        s.estop();
+        s.observe(state(0.014, 0.9, 0.0, 0.0));
+        let (out, log) = s.filter(0.014, &stand(0.9, 0.0));
+        assert_eq!(out, damping(3.0));
+        assert_eq!(log, vec![Intervention::EStop]);
+    }
+}
