@@ -249,7 +249,7 @@ impl SafetyLayer {
                     o.q = sent;
                 }
                 let lim = c.torque_limit_nm;
-                if !(o.tau.abs() <= lim) {
+                if o.tau.is_nan() || o.tau.abs() > lim {
                     let sent = if o.tau.is_nan() {
                         0.0
                     } else {
