@@ -27,6 +27,13 @@ pub struct WalkArgs {
     /// filter on the simulated IMU and joint encoders).
     #[arg(long, default_value = "ground-truth")]
     pub estimator: String,
+    /// With --estimator kf: noise-free sensors without latency (default: A1-like noise, see
+    /// `eemp_sim::sensors::SensorNoise`).
+    #[arg(long)]
+    pub ideal_sensors: bool,
+    /// Seed of the sensor noise and of the start perturbation (0: start exactly at rest).
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
     /// trot, walk or free (no predetermined order). EEMP only.
     #[arg(long, default_value = "trot")]
     pub gait: String,
@@ -173,12 +180,21 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
         spec.profile = load_toml::<VelocityProfile>(p).map_err(|e| e.to_string())?;
     }
     spec.controller.mpc_period_s = args.mpc_period;
+    spec.seed = args.seed;
     spec.state_source = match args.estimator.as_str() {
         "ground-truth" => eemp_sim::closed_loop::StateSource::GroundTruth,
-        "kf" => eemp_sim::closed_loop::StateSource::Kf(eemp_core::estimator::KfConfig {
-            foot_height_m: robot.leg.foot_radius_m,
-            ..Default::default()
-        }),
+        "kf" => eemp_sim::closed_loop::StateSource::Kf {
+            kf: eemp_core::estimator::KfConfig {
+                foot_height_m: robot.leg.foot_radius_m,
+                ..Default::default()
+            },
+            sensors: if args.ideal_sensors {
+                eemp_sim::sensors::SensorNoise::none()
+            } else {
+                eemp_sim::sensors::SensorNoise::default()
+            },
+            seed: args.seed,
+        },
         other => {
             return Err(format!(
                 "unknown --estimator '{other}': allowed ground-truth, kf"

@@ -2,6 +2,7 @@
 //! time, with pushes, fall detection and a per-stage time budget.
 
 use crate::backend::Simulation;
+use crate::sensors::{SensorNoise, Sensors};
 use eemp_core::body_state::RobotState;
 use eemp_core::control::{ControlInput, Controller};
 use eemp_core::controller::{feet_world, ControlOutput, Plan};
@@ -75,15 +76,20 @@ pub const LOADED_FOOT_N: f64 = 5.0;
 pub enum StateSource {
     /// The simulator's own state, read without noise or delay.
     GroundTruth,
-    /// The linear Kalman filter on the simulated IMU and encoders (`eemp_core::estimator`).
-    Kf(KfConfig),
+    /// The linear Kalman filter on the simulated IMU and encoders (`eemp_core::estimator`),
+    /// with their noise; `seed` seeds the noise.
+    Kf {
+        kf: KfConfig,
+        sensors: SensorNoise,
+        seed: u64,
+    },
 }
 
 impl StateSource {
     pub fn name(&self) -> &'static str {
         match self {
             StateSource::GroundTruth => "ground-truth",
-            StateSource::Kf(_) => "kf",
+            StateSource::Kf { .. } => "kf",
         }
     }
 }
@@ -189,7 +195,7 @@ pub struct ClosedLoop {
     t_start: f64,
     wall_start: Instant,
     loaded: LegMap<bool>,
-    estimator: Option<LinearKf>,
+    estimator: Option<(LinearKf, Sensors)>,
     estimation: EstimationStats,
     /// When each leg entered stance (for the estimator's trust), s.
     stance_since: LegMap<Option<f64>>,
@@ -233,14 +239,13 @@ impl ClosedLoop {
     ) -> Result<Self, eemp_core::config_error::ConfigError> {
         let estimator = match source {
             StateSource::GroundTruth => None,
-            StateSource::Kf(config) => {
+            StateSource::Kf { kf, sensors, seed } => {
                 sim.prepare_kinematics();
                 let start = sim.ground_truth_state();
-                Some(LinearKf::new(
-                    config.clone(),
-                    sim.kinematics().clone(),
-                    &start,
-                )?)
+                Some((
+                    LinearKf::new(kf.clone(), sim.kinematics().clone(), &start)?,
+                    Sensors::new(sensors.clone(), *seed, sim.timestep_s())?,
+                ))
             }
         };
         let mut lp = ClosedLoop::new(sim, pushes, limits);
@@ -288,7 +293,7 @@ impl ClosedLoop {
         self.stance_since = LegMap::splat(Some(self.t_start));
         self.last_torques = LegMap::splat(Vector3::zeros());
         self.estimation = EstimationStats::default();
-        if let Some(kf) = self.estimator.as_mut() {
+        if let Some((kf, _)) = self.estimator.as_mut() {
             self.sim.prepare_kinematics();
             kf.reset(&self.sim.ground_truth_state());
         }
@@ -337,11 +342,12 @@ impl ClosedLoop {
                 // Encoders and the IMU; the attitude comes from the IMU as on the A1.
                 let trust = self.contact_trust(controller, &truth);
                 let imu = self.sim.imu();
-                let kf = self.estimator.as_mut().expect("checked");
+                let (kf, sensors) = self.estimator.as_mut().expect("checked");
+                let seen = sensors.read(imu, &truth.joints);
                 let est = kf.update(&EstimatorInput {
                     time_s: truth.time_s,
-                    imu,
-                    joints: truth.joints,
+                    imu: seen.imu,
+                    joints: seen.joints,
                     contact_trust: trust,
                 });
                 self.estimation.sq_vel += (est.body.v_world - truth.body.v_world).norm_squared();

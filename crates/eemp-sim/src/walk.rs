@@ -192,8 +192,9 @@ impl WalkSpec {
         if let Some(mu) = self.floor_friction {
             check_range("floor_friction", mu, 0.05, 5.0)?;
         }
-        if let StateSource::Kf(kf) = &self.state_source {
+        if let StateSource::Kf { kf, sensors, .. } = &self.state_source {
             kf.validate()?;
+            sensors.validate()?;
         }
         Ok(())
     }

@@ -5,6 +5,7 @@ use eemp_core::estimator::KfConfig;
 use eemp_core::planner::{Gait, PlannerConfig, PlannerParams, VelocityCommand};
 use eemp_core::robot::RobotConfig;
 use eemp_sim::closed_loop::StateSource;
+use eemp_sim::sensors::SensorNoise;
 use eemp_sim::walk::{run_walk, WalkSpec};
 
 fn trot(source: StateSource) -> eemp_sim::walk::WalkRun {
@@ -27,7 +28,11 @@ fn trot(source: StateSource) -> eemp_sim::walk::WalkRun {
 #[test]
 fn a_10_s_trot_on_the_kalman_filter_tracks_like_one_on_ground_truth() {
     let truth = trot(StateSource::GroundTruth);
-    let kf = trot(StateSource::Kf(KfConfig::default()));
+    let kf = trot(StateSource::Kf {
+        kf: KfConfig::default(),
+        sensors: SensorNoise::none(),
+        seed: 1,
+    });
     assert!(!kf.stats.fell);
     // Measured 2026-12-01: estimate error 0.017 m/s and 0.071 m; tracking 0.040 vs 0.045 m/s.
     let v_err = kf.estimation.vel_rmse_mps().unwrap();
@@ -43,4 +48,20 @@ fn a_10_s_trot_on_the_kalman_filter_tracks_like_one_on_ground_truth() {
         "tracking on the filter {a} vs on ground truth {b}"
     );
     assert!(truth.estimation.vel_rmse_mps().is_none());
+}
+
+#[test]
+fn the_filter_on_noisy_late_sensors_stays_finite_and_the_trot_walks() {
+    let run = trot(StateSource::Kf {
+        kf: KfConfig::default(),
+        sensors: SensorNoise::default(),
+        seed: 4,
+    });
+    assert!(!run.stats.fell);
+    let v_err = run.estimation.vel_rmse_mps().unwrap();
+    assert!(
+        v_err.is_finite() && v_err <= 0.06,
+        "velocity estimate RMSE {v_err} m/s"
+    );
+    assert!(run.metrics.vel_rmse_mps.unwrap() <= 0.1);
 }
