@@ -1,5 +1,6 @@
 //! Library side of the `eemp` command: plotting helpers shared by its subcommands.
 pub mod bench;
+pub mod bench_estimator;
 pub mod bench_rl;
 pub mod output;
 pub mod plots;

@@ -46,6 +46,11 @@ enum BenchCommand {
         #[arg(long, default_value_t = 300)]
         solves: usize,
     },
+    /// Time one Kalman-filter update against a bare MuJoCo step, in one run.
+    Estimator {
+        #[arg(long, default_value_t = 20000)]
+        updates: usize,
+    },
     /// Time the learned-controller pipeline: env stepping (1 thread, all), training, bare MuJoCo.
     Rl {
         /// Environments (as many as the shipped training config).
@@ -107,6 +112,17 @@ fn main() {
         })
         .map(|r| {
             println!("{}", r.table());
+            println!("{}", r.json_line());
+        }),
+        Command::Bench {
+            what: BenchCommand::Estimator { updates },
+        } => eemp_cli::bench_estimator::bench_estimator(updates.max(1)).map(|r| {
+            println!(
+                "Kalman filter update {:.2} µs, bare MuJoCo step {:.2} µs: {:.2} bare steps",
+                r.update_us,
+                r.mujoco_step_us,
+                r.ratio()
+            );
             println!("{}", r.json_line());
         }),
         Command::Model { robot } => (|| {

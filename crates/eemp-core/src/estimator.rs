@@ -114,6 +114,15 @@ pub fn stance_trust(phase: f64, window: f64) -> f64 {
     }
 }
 
+/// One scalar measurement: x[plus] − x[minus] = y with variance `var`.
+#[derive(Clone, Copy, Debug)]
+struct Row {
+    plus: usize,
+    minus: Option<usize>,
+    y: f64,
+    var: f64,
+}
+
 type State = SVector<f64, 18>;
 type Cov = SMatrix<f64, 18, 18>;
 
@@ -191,62 +200,32 @@ impl LinearKf {
         let p_new = self.position_world() + v * dt + a_world * (0.5 * dt * dt);
         self.x.fixed_rows_mut::<3>(0).copy_from(&p_new);
         self.x.fixed_rows_mut::<3>(3).copy_from(&(v + a_world * dt));
-        let mut a = Cov::identity();
+        // P ← A P Aᵀ + Q with A = I + dt·(v into p): only the position rows and columns change.
         for i in 0..3 {
-            a[(i, 3 + i)] = dt;
+            for k in 0..18 {
+                let v = self.p[(3 + i, k)];
+                self.p[(i, k)] += dt * v;
+            }
         }
-        let mut q = Cov::zeros();
         for i in 0..3 {
-            q[(i, i)] = dt / 20.0 * c.imu_process_noise_position;
-            q[(3 + i, 3 + i)] = dt * 9.81 / 20.0 * c.imu_process_noise_velocity;
+            for k in 0..18 {
+                let v = self.p[(k, 3 + i)];
+                self.p[(k, i)] += dt * v;
+            }
+        }
+        for i in 0..3 {
+            self.p[(i, i)] += dt / 20.0 * c.imu_process_noise_position;
+            self.p[(3 + i, 3 + i)] += dt * 9.81 / 20.0 * c.imu_process_noise_velocity;
         }
         for leg in Leg::ALL {
             let suspect = 1.0 + (1.0 - input.contact_trust[leg].clamp(0.0, 1.0)) * c.suspect_factor;
             for i in 0..3 {
                 let k = 6 + 3 * leg.index() + i;
-                q[(k, k)] = dt * c.foot_process_noise_position * suspect;
+                self.p[(k, k)] += dt * c.foot_process_noise_position * suspect;
             }
         }
-        self.p = a * self.p * a.transpose() + q;
-
-        // Measure: C x vs y, with innovation covariance S = C P Cᵀ + R.
-        let mut cm = SMatrix::<f64, 28, 18>::zeros();
-        let mut y = SVector::<f64, 28>::zeros();
-        let mut rn = SVector::<f64, 28>::zeros();
-        for leg in Leg::ALL {
-            let i = leg.index();
-            let j = &input.joints[leg];
-            let trust = input.contact_trust[leg].clamp(0.0, 1.0);
-            let suspect = 1.0 + (1.0 - trust) * c.suspect_factor;
-            let p_rel_body = self.kinematics.foot_position_body(leg, &j.q);
-            let v_rel_body = self.kinematics.foot_jacobian_body(leg, &j.q) * j.qd;
-            let p_rel_world = r * p_rel_body;
-            // Trunk velocity if this foot is still: v = −(ω × p_rel + R J q̇).
-            let v_meas = -(omega_world.cross(&p_rel_world) + r * v_rel_body);
-            let v_hat = self.velocity_world();
-            let foot_z_hat = self.x[6 + 3 * i + 2];
-            for k in 0..3 {
-                cm[(3 * i + k, k)] = 1.0;
-                cm[(3 * i + k, 6 + 3 * i + k)] = -1.0;
-                y[3 * i + k] = -p_rel_world[k];
-                rn[3 * i + k] = c.foot_sensor_noise_position;
-                cm[(12 + 3 * i + k, 3 + k)] = 1.0;
-                y[12 + 3 * i + k] = (1.0 - trust) * v_hat[k] + trust * v_meas[k];
-                rn[12 + 3 * i + k] = c.foot_sensor_noise_velocity * suspect;
-            }
-            cm[(24 + i, 6 + 3 * i + 2)] = 1.0;
-            y[24 + i] = (1.0 - trust) * foot_z_hat + trust * c.foot_height_m;
-            rn[24 + i] = c.foot_height_sensor_noise * suspect;
-        }
-        let pct = self.p * cm.transpose();
-        let s = cm * pct + SMatrix::<f64, 28, 28>::from_diagonal(&rn);
-        if let Some(chol) = s.cholesky() {
-            let innovation = y - cm * self.x;
-            let k_gain = chol.solve(&pct.transpose()).transpose();
-            self.x += k_gain * innovation;
-            self.p = (Cov::identity() - k_gain * cm) * self.p;
-            self.p = (self.p + self.p.transpose()) * 0.5;
-        }
+        let rows = self.measurements(input, &omega_world);
+        self.correct_sequential(&rows);
         RobotState {
             time_s: input.time_s,
             body: BodyState {
@@ -257,6 +236,102 @@ impl LinearKf {
             },
             joints: input.joints,
         }
+    }
+
+    /// The 28 scalar measurements: (state index with +1, state index with −1, value, variance).
+    fn measurements(&self, input: &EstimatorInput, omega_world: &Vector3<f64>) -> Vec<Row> {
+        let c = &self.config;
+        let r = input.imu.r_world_body;
+        let mut rows = Vec::with_capacity(28);
+        let v_hat = self.velocity_world();
+        for leg in Leg::ALL {
+            let i = leg.index();
+            let j = &input.joints[leg];
+            let trust = input.contact_trust[leg].clamp(0.0, 1.0);
+            let suspect = 1.0 + (1.0 - trust) * c.suspect_factor;
+            let p_rel_body = self.kinematics.foot_position_body(leg, &j.q);
+            let v_rel_body = self.kinematics.foot_jacobian_body(leg, &j.q) * j.qd;
+            let p_rel_world = r * p_rel_body;
+            // Trunk velocity if this foot is still: v = −(ω × p_rel + R J q̇).
+            let v_meas = -(omega_world.cross(&p_rel_world) + r * v_rel_body);
+            let foot = 6 + 3 * i;
+            for k in 0..3 {
+                // p − p_foot = −R p_rel
+                rows.push(Row {
+                    plus: k,
+                    minus: Some(foot + k),
+                    y: -p_rel_world[k],
+                    var: c.foot_sensor_noise_position,
+                });
+            }
+            for k in 0..3 {
+                rows.push(Row {
+                    plus: 3 + k,
+                    minus: None,
+                    y: (1.0 - trust) * v_hat[k] + trust * v_meas[k],
+                    var: c.foot_sensor_noise_velocity * suspect,
+                });
+            }
+            rows.push(Row {
+                plus: foot + 2,
+                minus: None,
+                y: (1.0 - trust) * self.x[foot + 2] + trust * c.foot_height_m,
+                var: c.foot_height_sensor_noise * suspect,
+            });
+        }
+        rows
+    }
+
+    /// The measurement update one scalar at a time (R is diagonal, so this equals the batch
+    /// update; each row of C has one or two ±1 entries, so each step is O(n²) with no solve).
+    fn correct_sequential(&mut self, rows: &[Row]) {
+        let mut pc = [0.0f64; 18];
+        for row in rows {
+            for (k, v) in pc.iter_mut().enumerate() {
+                *v = self.p[(k, row.plus)] - row.minus.map_or(0.0, |m| self.p[(k, m)]);
+            }
+            let s = pc[row.plus] - row.minus.map_or(0.0, |m| pc[m]) + row.var;
+            if s.is_nan() || s <= 0.0 {
+                continue;
+            }
+            let predicted = self.x[row.plus] - row.minus.map_or(0.0, |m| self.x[m]);
+            let innovation = row.y - predicted;
+            for k in 0..18 {
+                self.x[k] += pc[k] / s * innovation;
+            }
+            for a in 0..18 {
+                let ka = pc[a] / s;
+                for b in 0..18 {
+                    self.p[(a, b)] -= ka * pc[b];
+                }
+            }
+        }
+        self.p = (self.p + self.p.transpose()) * 0.5;
+    }
+
+    /// The textbook batch update (S = C P Cᵀ + R, K = P Cᵀ S⁻¹), the second method the tests
+    /// compare the sequential one with.
+    #[cfg(test)]
+    fn correct_batch(&mut self, rows: &[Row]) {
+        let mut cm = SMatrix::<f64, 28, 18>::zeros();
+        let mut y = SVector::<f64, 28>::zeros();
+        let mut rn = SVector::<f64, 28>::zeros();
+        for (i, row) in rows.iter().enumerate() {
+            cm[(i, row.plus)] = 1.0;
+            if let Some(m) = row.minus {
+                cm[(i, m)] = -1.0;
+            }
+            y[i] = row.y;
+            rn[i] = row.var;
+        }
+        let pct = self.p * cm.transpose();
+        let s = cm * pct + SMatrix::<f64, 28, 28>::from_diagonal(&rn);
+        let chol = s.cholesky().expect("S is positive definite");
+        let innovation = y - cm * self.x;
+        let k_gain = chol.solve(&pct.transpose()).transpose();
+        self.x += k_gain * innovation;
+        self.p = (Cov::identity() - k_gain * cm) * self.p;
+        self.p = (self.p + self.p.transpose()) * 0.5;
     }
 
     /// Whether every state and covariance entry is finite.
@@ -338,6 +413,45 @@ mod tests {
             est.body.p_world
         );
         assert!(kf.is_finite());
+    }
+
+    #[test]
+    fn the_sequential_update_equals_the_batch_update() {
+        let robot = RobotConfig::a1();
+        let kin = LegKinematics::new(&robot);
+        let feet = LegMap::from_fn(|leg| {
+            let mut f = kin.nominal_foot_body(leg) + Vector3::new(0.03, -0.02, 0.28);
+            f.z = 0.02;
+            f
+        });
+        let truth = gliding(Vector3::new(0.3, 0.1, 0.0), 0.0, &kin, &feet);
+        let mut a = LinearKf::new(KfConfig::default(), kin.clone(), &truth).unwrap();
+        a.p = Cov::from_fn(|i, j| {
+            if i == j {
+                0.01 + 0.001 * i as f64
+            } else {
+                1e-4 / (1.0 + (i + j) as f64)
+            }
+        });
+        a.x[3] = 0.1;
+        let mut b = a.clone();
+        let input = EstimatorInput {
+            time_s: 0.002,
+            imu: ImuReading {
+                r_world_body: UnitQuaternion::from_euler_angles(0.05, -0.03, 0.4),
+                gyro_body: Vector3::new(0.2, -0.1, 0.3),
+                accel_body: Vector3::new(0.3, 0.1, 9.7),
+            },
+            joints: truth.joints,
+            contact_trust: LegMap::from_fn(|leg| [1.0, 0.3, 0.0, 0.8][leg.index()]),
+        };
+        let omega = input.imu.r_world_body * input.imu.gyro_body;
+        let rows = a.measurements(&input, &omega);
+        assert_eq!(rows.len(), 28);
+        a.correct_sequential(&rows);
+        b.correct_batch(&rows);
+        assert!((a.x - b.x).amax() < 1e-9, "{}", (a.x - b.x).amax());
+        assert!((a.p - b.p).amax() < 1e-9, "{}", (a.p - b.p).amax());
     }
 
     #[test]
