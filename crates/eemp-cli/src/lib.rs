@@ -5,6 +5,7 @@ pub mod bench_rl;
 pub mod output;
 pub mod plots;
 pub mod stand_cmd;
+pub mod state_source_arg;
 pub mod sweep_cmd;
 pub mod sweep_report;
 pub mod train_cmd;

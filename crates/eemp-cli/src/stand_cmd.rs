@@ -7,7 +7,7 @@ use eemp_core::controller::ControllerConfig;
 use eemp_core::robot::RobotConfig;
 use eemp_core::stand_profile::BodyMotionProfile;
 use eemp_sim::closed_loop::{percentile, Push};
-use eemp_sim::stand::run_stand;
+use eemp_sim::stand::run_stand_on;
 use nalgebra::Vector3;
 use std::path::PathBuf;
 
@@ -36,6 +36,16 @@ pub struct StandArgs {
     /// about a quarter of the run time).
     #[arg(long, default_value_t = 100.0)]
     pub trace_hz: f64,
+    /// What the controller sees: ground-truth (the simulator's state) or kf (the linear Kalman
+    /// filter on the simulated IMU and joint encoders).
+    #[arg(long, default_value = "ground-truth")]
+    pub estimator: String,
+    /// With --estimator kf: noise-free sensors without latency.
+    #[arg(long)]
+    pub ideal_sensors: bool,
+    /// Seed of the sensor noise.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
     /// Robot description (default: the shipped A1, robots/a1.toml).
     #[arg(long)]
     pub robot: Option<PathBuf>,
@@ -94,6 +104,12 @@ pub fn run(args: &StandArgs) -> Result<(), String> {
     controller
         .validate()
         .map_err(|e| format!("--mpc-period: {e}"))?;
+    let source = crate::state_source_arg::state_source(
+        &args.estimator,
+        args.ideal_sensors,
+        args.seed,
+        &robot,
+    )?;
     create_dir(&args.out).map_err(|e| e.to_string())?;
     let header: Vec<String> = [
         "time_s",
@@ -125,45 +141,53 @@ pub fn run(args: &StandArgs) -> Result<(), String> {
     let mut write_error = None;
     let mut step = 0usize;
     let rise_s = profile.rise_s;
-    let run = run_stand(&robot, controller, profile, args.duration, &pushes, |r| {
-        let s = &r.state.body;
-        let rpy = s.rpy();
-        let rf = &r.plan.expect("the stand controller always plans").body_now;
-        let mut row = vec![
-            r.state.time_s,
-            s.p_world.x,
-            s.p_world.y,
-            s.p_world.z,
-            rpy.x,
-            rpy.y,
-            rpy.z,
-            rf.p_world.x,
-            rf.p_world.y,
-            rf.p_world.z,
-            rf.rpy.x,
-            rf.rpy.y,
-            rf.rpy.z,
-        ];
-        for (i, v) in row.iter().enumerate() {
-            series[i].push(*v);
-        }
-        row.extend(r.output.torques.0.iter().flat_map(|t| t.iter().copied()));
-        if step.is_multiple_of(trace_every) {
-            if let Err(e) = trace.row(&row) {
-                write_error.get_or_insert(e);
+    let run = run_stand_on(
+        &robot,
+        controller,
+        profile,
+        args.duration,
+        &pushes,
+        &source,
+        |r| {
+            let s = &r.state.body;
+            let rpy = s.rpy();
+            let rf = &r.plan.expect("the stand controller always plans").body_now;
+            let mut row = vec![
+                r.state.time_s,
+                s.p_world.x,
+                s.p_world.y,
+                s.p_world.z,
+                rpy.x,
+                rpy.y,
+                rpy.z,
+                rf.p_world.x,
+                rf.p_world.y,
+                rf.p_world.z,
+                rf.rpy.x,
+                rf.rpy.y,
+                rf.rpy.z,
+            ];
+            for (i, v) in row.iter().enumerate() {
+                series[i].push(*v);
             }
-        }
-        step += 1;
-        // Tracking is scored once the rise is over (plus 0.5 s to settle).
-        if r.state.time_s >= rise_s + 0.5 {
-            sq_pos += (s.p_world - rf.p_world).norm_squared();
-            let mut e = rpy - rf.rpy;
-            e.z = (e.z + std::f64::consts::PI).rem_euclid(2.0 * std::f64::consts::PI)
-                - std::f64::consts::PI;
-            sq_rpy += e.norm_squared();
-            n += 1;
-        }
-    })
+            row.extend(r.output.torques.0.iter().flat_map(|t| t.iter().copied()));
+            if step.is_multiple_of(trace_every) {
+                if let Err(e) = trace.row(&row) {
+                    write_error.get_or_insert(e);
+                }
+            }
+            step += 1;
+            // Tracking is scored once the rise is over (plus 0.5 s to settle).
+            if r.state.time_s >= rise_s + 0.5 {
+                sq_pos += (s.p_world - rf.p_world).norm_squared();
+                let mut e = rpy - rf.rpy;
+                e.z = (e.z + std::f64::consts::PI).rem_euclid(2.0 * std::f64::consts::PI)
+                    - std::f64::consts::PI;
+                sq_rpy += e.norm_squared();
+                n += 1;
+            }
+        },
+    )
     .map_err(|e| e.to_string())?;
     if let Some(e) = write_error {
         return Err(e.to_string());
@@ -190,7 +214,9 @@ pub fn run(args: &StandArgs) -> Result<(), String> {
         "mpc_solve_us_p99": percentile(&stats.mpc_solve_times_s, 0.99) * 1e6,
         "realtime_factor": stats.realtime_factor(),
         "pushes": pushes.iter().map(|p| serde_json::json!({"at_s": p.at_s, "dv_world_mps": [p.dv_world.x, p.dv_world.y, p.dv_world.z]})).collect::<Vec<_>>(),
-        "state_estimate": "ground truth (simulator state)",
+        "state_estimate": source.name(),
+        "estimation_vel_rmse_mps": run.estimation.vel_rmse_mps(),
+        "estimation_pos_rmse_m": run.estimation.pos_rmse_m(),
     });
     write_json(&args.out.join("summary.json"), &summary).map_err(|e| e.to_string())?;
     let t = series[0].clone();

@@ -181,26 +181,12 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
     }
     spec.controller.mpc_period_s = args.mpc_period;
     spec.seed = args.seed;
-    spec.state_source = match args.estimator.as_str() {
-        "ground-truth" => eemp_sim::closed_loop::StateSource::GroundTruth,
-        "kf" => eemp_sim::closed_loop::StateSource::Kf {
-            kf: eemp_core::estimator::KfConfig {
-                foot_height_m: robot.leg.foot_radius_m,
-                ..Default::default()
-            },
-            sensors: if args.ideal_sensors {
-                eemp_sim::sensors::SensorNoise::none()
-            } else {
-                eemp_sim::sensors::SensorNoise::default()
-            },
-            seed: args.seed,
-        },
-        other => {
-            return Err(format!(
-                "unknown --estimator '{other}': allowed ground-truth, kf"
-            ))
-        }
-    };
+    spec.state_source = crate::state_source_arg::state_source(
+        &args.estimator,
+        args.ideal_sensors,
+        args.seed,
+        &robot,
+    )?;
     spec.floor_friction = args.friction;
     spec.params_table = params_table;
     if let Some(at) = args.push_at {

@@ -2,7 +2,10 @@
 //! body-motion profile on four stance legs.
 
 use crate::backend::{SimError, Simulation};
-use crate::closed_loop::{run_closed_loop, ClosedLoop, FallLimits, LoopStats, Push, StepRecord};
+use crate::closed_loop::{
+    run_closed_loop, ClosedLoop, EstimationStats, FallLimits, LoopStats, Push, StateSource,
+    StepRecord,
+};
 use crate::mjcf::SceneExtras;
 use eemp_core::config_error::ConfigError;
 use eemp_core::controller::{ControllerConfig, LocomotionController};
@@ -40,15 +43,38 @@ pub fn reset_crouched(sim: &mut Simulation, robot: &RobotConfig) -> f64 {
 pub struct StandRun {
     pub stats: LoopStats,
     pub planner: StandPlanner,
+    /// Estimation error against the truth (empty on ground truth).
+    pub estimation: EstimationStats,
 }
 
-/// Runs the standing scenario for `duration_s`; `observer` sees every control step.
+/// Runs the standing scenario for `duration_s` on ground truth; `observer` sees every step.
 pub fn run_stand(
     robot: &RobotConfig,
     controller_config: ControllerConfig,
     profile: BodyMotionProfile,
     duration_s: f64,
     pushes: &[Push],
+    observer: impl FnMut(&StepRecord),
+) -> Result<StandRun, ScenarioError> {
+    run_stand_on(
+        robot,
+        controller_config,
+        profile,
+        duration_s,
+        pushes,
+        &StateSource::GroundTruth,
+        observer,
+    )
+}
+
+/// [`run_stand`] with the controller's state from `source` (ground truth or the filter).
+pub fn run_stand_on(
+    robot: &RobotConfig,
+    controller_config: ControllerConfig,
+    profile: BodyMotionProfile,
+    duration_s: f64,
+    pushes: &[Push],
+    source: &StateSource,
     observer: impl FnMut(&StepRecord),
 ) -> Result<StandRun, ScenarioError> {
     let mut sim = Simulation::new(robot, &SceneExtras::default())?;
@@ -64,15 +90,15 @@ pub fn run_stand(
     )?;
     let mut controller = StandController::new(planner, locomotion);
     let lp = run_closed_loop(
-        ClosedLoop::new(sim, pushes, FallLimits::default()),
+        ClosedLoop::with_state_source(sim, pushes, FallLimits::default(), source)?,
         &mut controller,
         duration_s,
         |_| VelocityCommand::default(),
         observer,
     );
-    let stats = lp.stats().clone();
     Ok(StandRun {
-        stats,
+        stats: lp.stats().clone(),
+        estimation: lp.estimation().clone(),
         planner: controller.planner,
     })
 }
