@@ -83,6 +83,10 @@ pub struct WalkArgs {
     /// Lateral velocity change of the push, m/s.
     #[arg(long, default_value_t = 0.3)]
     pub push_dv: f64,
+    /// Friction coefficient the MPC assumes (its friction pyramid); keep it at or below the
+    /// floor's. Default: `MpcConfig`'s 0.6.
+    #[arg(long)]
+    pub mpc_friction: Option<f64>,
     /// Time between MPC solves, s (a stance change also triggers a solve).
     #[arg(long, default_value_t = eemp_core::controller::ControllerConfig::default().mpc_period_s)]
     pub mpc_period: f64,
@@ -180,6 +184,9 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
         spec.profile = load_toml::<VelocityProfile>(p).map_err(|e| e.to_string())?;
     }
     spec.controller.mpc_period_s = args.mpc_period;
+    if let Some(mu) = args.mpc_friction {
+        spec.controller.mpc.friction_coefficient = mu;
+    }
     spec.seed = args.seed;
     spec.state_source = crate::state_source_arg::state_source(
         &args.estimator,
