@@ -20,8 +20,8 @@ pub struct TrainArgs {
     /// Output folder: train.csv, curves.png, checkpoint/, policy.safetensors, config.toml.
     #[arg(long)]
     pub out: PathBuf,
-    /// Continue from the checkpoint in --out (same config and thread count → the same result
-    /// as an uninterrupted run).
+    /// Continue from the checkpoint in --out (same config → the same result as an
+    /// uninterrupted run, whatever the thread count).
     #[arg(long)]
     pub resume: bool,
     /// Worker threads for environment stepping (default: all cores).

@@ -1,7 +1,8 @@
 //! The training loop: rollouts on the vectorised environments, PPO updates, `train.csv`
 //! (one row per iteration, flushed), checkpoints every few iterations, resume.
 //!
-//! Resume equals an uninterrupted run (same seed, same thread count): a checkpoint holds the
+//! Resume equals an uninterrupted run (same seed; the thread count does not matter, the
+//! environments are independent and the action noise is drawn on one thread): a checkpoint holds the
 //! network, Adam's moments, the normaliser, every RNG and every environment's full state, and
 //! rows of `train.csv` after the checkpoint are dropped and rewritten.
 
@@ -490,13 +491,6 @@ impl<E: Env> Trainer<E> {
                  (or train into another --out)",
                 path.display()
             ));
-        }
-        if s.threads != self.threads {
-            eprintln!(
-                "note: the checkpoint ran with {} threads, this run has {}: the result stays \
-                 valid but may differ in the last bits from an uninterrupted run",
-                s.threads, self.threads
-            );
         }
         let lpath = dir.join("learner.safetensors");
         let f = TensorFile::load(&lpath)?;

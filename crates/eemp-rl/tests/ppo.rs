@@ -42,6 +42,16 @@ fn run(
     resume: bool,
     max: Option<usize>,
 ) -> (Policy, Vec<IterationLog>) {
+    run_on(config, out, resume, max, 2)
+}
+
+fn run_on(
+    config: &TrainConfig,
+    out: &std::path::Path,
+    resume: bool,
+    max: Option<usize>,
+    threads: usize,
+) -> (Policy, Vec<IterationLog>) {
     let mut logs = Vec::new();
     let p = train(
         config,
@@ -49,7 +59,7 @@ fn run(
         &TrainOptions {
             out: out.to_path_buf(),
             resume,
-            threads: 2,
+            threads,
             max_iterations: max,
         },
         &mut |l| logs.push(l.clone()),
@@ -128,6 +138,26 @@ fn a_resumed_model_free_run_equals_an_uninterrupted_one() {
     assert_eq!(logs.last().unwrap().terms, logs_r.last().unwrap().terms);
     assert_eq!(whole.normalizer, resumed.normalizer);
     assert!(dir.path().join("whole/policy.safetensors").exists());
+}
+
+#[test]
+fn training_on_one_or_two_threads_gives_the_same_policy() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = TrainConfig {
+        num_envs: 4,
+        steps_per_env: 16,
+        total_env_steps: 2 * 4 * 16,
+        network: NetworkConfig {
+            actor_hidden: vec![16],
+            critic_hidden: vec![16],
+            activation: Activation::Elu,
+        },
+        ..Default::default()
+    };
+    let (a, _) = run_on(&config, &dir.path().join("one"), false, None, 1);
+    let (b, _) = run_on(&config, &dir.path().join("two"), false, None, 2);
+    assert_eq!(params(&a), params(&b));
+    assert_eq!(a.normalizer, b.normalizer);
 }
 
 #[test]
