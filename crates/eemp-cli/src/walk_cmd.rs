@@ -74,6 +74,11 @@ pub struct WalkArgs {
     /// The body reference follows a change of the command at most this fast, m/s².
     #[arg(long, default_value_t = PlannerConfig::default().max_accel_mps2)]
     pub max_accel: f64,
+    /// Terrain file (TOML: `[rough]` amplitude_m/wavelength_m/seed/size_m, `[ramp]`
+    /// start_x_m/grade/rise_m/plateau_m, `[step]` at_x_m/height_m, `[[friction_patch]]`
+    /// x0_m/x1_m/width_m/friction); default: the flat floor.
+    #[arg(long)]
+    pub terrain: Option<PathBuf>,
     /// Floor friction coefficient (slippery ground below ~0.4); default: the robot file's.
     #[arg(long)]
     pub friction: Option<f64>,
@@ -195,6 +200,12 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
         &robot,
     )?;
     spec.floor_friction = args.friction;
+    if let Some(p) = &args.terrain {
+        spec.terrain = load_toml(p).map_err(|e| e.to_string())?;
+        spec.terrain
+            .validate()
+            .map_err(|e| format!("{}: {e}", p.display()))?;
+    }
     spec.params_table = params_table;
     if let Some(at) = args.push_at {
         if !(at.is_finite() && at >= 0.0 && at < args.duration) {
@@ -383,6 +394,7 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
             "planner": st.stages.planner_s / total,
             "logging": st.stages.observer_s / total,
         },
+        "terrain": args.terrain.as_ref().map(|p| p.display().to_string()),
         "state_estimate": spec.state_source.name(),
         "estimation_vel_rmse_mps": run.estimation.vel_rmse_mps(),
         "estimation_pos_rmse_m": run.estimation.pos_rmse_m(),

@@ -5,6 +5,7 @@ pub mod closed_loop;
 pub mod mjcf;
 pub mod sensors;
 pub mod stand;
+pub mod terrain;
 pub mod walk;
 
 pub use backend::{SimError, Simulation};

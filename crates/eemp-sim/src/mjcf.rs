@@ -17,6 +17,10 @@ use std::fmt::Write;
 #[derive(Clone, Debug, Default)]
 pub struct SceneExtras {
     pub world_geoms_xml: String,
+    /// Inside `<asset>` (height fields).
+    pub assets_xml: String,
+    /// Height of the flat floor plane, m (lowered under a height field).
+    pub floor_z_m: f64,
 }
 
 fn v3(v: [f64; 3]) -> String {
@@ -111,9 +115,10 @@ pub fn robot_mjcf(robot: &RobotConfig, extras: &SceneExtras) -> String {
     <geom contype="1" conaffinity="0" condim="3" rgba="0.3 0.3 0.35 1"/>
   </default>
   <visual><global offwidth="1280" offheight="720"/></visual>
+  <asset>{assets}</asset>
   <worldbody>
     <light name="sun" pos="0 0 4" dir="0 0 -1" directional="true"/>
-    <geom name="floor" type="plane" size="0 0 0.05" contype="1" conaffinity="1" priority="1" condim="3" friction="{mu} 0.02 0.01" solimp="0.015 1 0.031" rgba="0.8 0.8 0.8 1"/>
+    <geom name="floor" type="plane" size="0 0 0.05" pos="0 0 {floor_z}" contype="1" conaffinity="1" priority="1" condim="3" friction="{mu} 0.02 0.01" solimp="0.015 1 0.031" rgba="0.8 0.8 0.8 1"/>
 {extras}
     <body name="trunk" pos="0 0 0.3">
       <freejoint name="root"/>
@@ -136,6 +141,8 @@ pub fn robot_mjcf(robot: &RobotConfig, extras: &SceneExtras) -> String {
         dt = s.timestep_s,
         mu = s.floor_friction,
         extras = extras.world_geoms_xml,
+        assets = extras.assets_xml,
+        floor_z = extras.floor_z_m,
         tm = t.mass_kg,
         cx = c[0],
         cy = c[1],

@@ -6,8 +6,8 @@ use crate::closed_loop::{
     run_closed_loop, ClosedLoop, EstimationStats, FallLimits, LoopStats, Push, StateSource,
     StepRecord,
 };
-use crate::mjcf::SceneExtras;
 use crate::stand::ScenarioError;
+use crate::terrain::Terrain;
 use eemp_core::config_error::{check_range, ConfigError};
 use eemp_core::control::Controller;
 use eemp_core::controller::{ControllerConfig, LocomotionController};
@@ -129,6 +129,8 @@ pub struct WalkSpec {
     pub seed: u64,
     /// What the controller sees: the simulator's state or the Kalman filter's estimate.
     pub state_source: StateSource,
+    /// The ground (flat by default).
+    pub terrain: Terrain,
 }
 
 impl WalkSpec {
@@ -151,6 +153,7 @@ impl WalkSpec {
             floor_friction: None,
             seed: 0,
             state_source: StateSource::GroundTruth,
+            terrain: Terrain::default(),
         }
     }
 
@@ -192,6 +195,7 @@ impl WalkSpec {
         if let Some(mu) = self.floor_friction {
             check_range("floor_friction", mu, 0.05, 5.0)?;
         }
+        self.terrain.validate()?;
         if let StateSource::Kf { kf, sensors, .. } = &self.state_source {
             kf.validate()?;
             sensors.validate()?;
@@ -326,7 +330,8 @@ pub fn run_walk_with(
     if let Some(mu) = spec.floor_friction {
         robot.simulation.floor_friction = mu;
     }
-    let mut sim = Simulation::new(&robot, &SceneExtras::default())?;
+    let scene = spec.terrain.scene(robot.simulation.floor_friction);
+    let mut sim = Simulation::new(&robot, &scene)?;
     reset_to_start(&mut sim, start, spec.seed);
     let kin = LegKinematics::new(&robot);
     let mut metrics = MetricsAccumulator::default();

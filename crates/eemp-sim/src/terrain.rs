@@ -1,0 +1,340 @@
+//! Terrain beyond the flat floor, generated into the MJCF from a description (seeded, so the
+//! same file gives the same ground): a rough height field, a ramp up and down, a step, and
+//! patches of another friction. [`Terrain::height_at`] says where the ground is.
+
+use crate::mjcf::SceneExtras;
+use eemp_core::config_error::{check_range, ConfigError};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+use std::fmt::Write;
+
+/// Contact softness shared with the floor (Menagerie's foot solimp).
+const SOLIMP: &str = "0.015 1 0.031";
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Rough {
+    /// Heights span ±amplitude, m.
+    pub amplitude_m: f64,
+    /// Distance between independent heights, m.
+    pub wavelength_m: f64,
+    pub seed: u64,
+    /// Side of the square field centred on the start, m.
+    #[serde(default = "Rough::default_size")]
+    pub size_m: f64,
+}
+
+impl Rough {
+    fn default_size() -> f64 {
+        16.0
+    }
+}
+
+/// A ramp up at `grade` from `start_x_m`, a plateau, and a ramp down at the same grade.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Ramp {
+    pub start_x_m: f64,
+    /// Rise over run (0.1 = 10 %).
+    pub grade: f64,
+    pub rise_m: f64,
+    pub plateau_m: f64,
+}
+
+/// The ground rises by `height_m` from `at_x_m` on (for 10 m).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Step {
+    pub at_x_m: f64,
+    pub height_m: f64,
+}
+
+/// A patch of other friction on the floor between `x0_m` and `x1_m`, `width_m` wide.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FrictionPatch {
+    pub x0_m: f64,
+    pub x1_m: f64,
+    #[serde(default = "FrictionPatch::default_width")]
+    pub width_m: f64,
+    pub friction: f64,
+}
+
+impl FrictionPatch {
+    fn default_width() -> f64 {
+        4.0
+    }
+}
+
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Terrain {
+    #[serde(default)]
+    pub rough: Option<Rough>,
+    #[serde(default)]
+    pub ramp: Option<Ramp>,
+    #[serde(default)]
+    pub step: Option<Step>,
+    #[serde(default)]
+    pub friction_patch: Vec<FrictionPatch>,
+}
+
+/// Height-field grid spacing, m.
+const CELL_M: f64 = 0.05;
+
+impl Terrain {
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        if let Some(r) = &self.rough {
+            check_range("terrain.rough.amplitude_m", r.amplitude_m, 0.001, 0.1)?;
+            check_range("terrain.rough.wavelength_m", r.wavelength_m, 0.1, 5.0)?;
+            check_range("terrain.rough.size_m", r.size_m, 1.0, 40.0)?;
+        }
+        if let Some(r) = &self.ramp {
+            check_range("terrain.ramp.start_x_m", r.start_x_m, 0.3, 100.0)?;
+            check_range("terrain.ramp.grade", r.grade, 0.01, 0.5)?;
+            check_range("terrain.ramp.rise_m", r.rise_m, 0.01, 2.0)?;
+            check_range("terrain.ramp.plateau_m", r.plateau_m, 0.0, 100.0)?;
+        }
+        if let Some(s) = &self.step {
+            check_range("terrain.step.at_x_m", s.at_x_m, 0.3, 100.0)?;
+            check_range("terrain.step.height_m", s.height_m, 0.005, 0.2)?;
+        }
+        for (i, p) in self.friction_patch.iter().enumerate() {
+            check_range(
+                &format!("terrain.friction_patch[{i}].x0_m"),
+                p.x0_m,
+                -100.0,
+                100.0,
+            )?;
+            check_range(
+                &format!("terrain.friction_patch[{i}].x1_m"),
+                p.x1_m,
+                p.x0_m + 0.01,
+                200.0,
+            )?;
+            check_range(
+                &format!("terrain.friction_patch[{i}].width_m"),
+                p.width_m,
+                0.1,
+                40.0,
+            )?;
+            check_range(
+                &format!("terrain.friction_patch[{i}].friction"),
+                p.friction,
+                0.05,
+                5.0,
+            )?;
+        }
+        if self.rough.is_some()
+            && (self.ramp.is_some() || self.step.is_some() || !self.friction_patch.is_empty())
+        {
+            return Err(ConfigError::Invalid {
+                name: "terrain".into(),
+                message: "a rough field cannot be combined with a ramp, a step or a friction patch"
+                    .into(),
+            });
+        }
+        Ok(())
+    }
+
+    /// The rough field's heights, row-major (y rows, x columns), and its grid size.
+    fn rough_grid(r: &Rough) -> (usize, Vec<f64>) {
+        let n = (r.size_m / CELL_M).round() as usize + 1;
+        // Random heights on a lattice of the wavelength, smoothly interpolated (value noise).
+        let m = (r.size_m / r.wavelength_m).ceil() as usize + 2;
+        let mut rng = ChaCha8Rng::seed_from_u64(r.seed);
+        let lattice: Vec<f64> = (0..m * m).map(|_| rng.random_range(-1.0..1.0)).collect();
+        let smooth = |t: f64| t * t * (3.0 - 2.0 * t);
+        let mut h = vec![0.0; n * n];
+        for iy in 0..n {
+            for ix in 0..n {
+                let (u, v) = (
+                    ix as f64 * CELL_M / r.wavelength_m,
+                    iy as f64 * CELL_M / r.wavelength_m,
+                );
+                let (i, j) = (u.floor() as usize, v.floor() as usize);
+                let (fu, fv) = (smooth(u - i as f64), smooth(v - j as f64));
+                let at = |a: usize, b: usize| lattice[(b.min(m - 1)) * m + a.min(m - 1)];
+                let top = at(i, j) * (1.0 - fu) + at(i + 1, j) * fu;
+                let bot = at(i, j + 1) * (1.0 - fu) + at(i + 1, j + 1) * fu;
+                h[iy * n + ix] = r.amplitude_m * (top * (1.0 - fv) + bot * fv);
+            }
+        }
+        // The start is level (z = 0 within 0.5 m of the centre, blending in by 1 m), so the
+        // robot is put down on flat ground and walks onto the roughness.
+        let half = r.size_m / 2.0;
+        for iy in 0..n {
+            for ix in 0..n {
+                let d = (ix as f64 * CELL_M - half).hypot(iy as f64 * CELL_M - half);
+                let w = ((d - 0.5) / 0.5).clamp(0.0, 1.0);
+                h[iy * n + ix] *= w * w * (3.0 - 2.0 * w);
+            }
+        }
+        (n, h)
+    }
+
+    /// Ground height at (x, y), m (what a resting foot or sphere sits on).
+    pub fn height_at(&self, x: f64, y: f64) -> f64 {
+        let mut z: f64 = 0.0;
+        if let Some(r) = &self.rough {
+            let (n, h) = Self::rough_grid(r);
+            let half = r.size_m / 2.0;
+            if x.abs() <= half && y.abs() <= half {
+                let (u, v) = ((x + half) / CELL_M, (y + half) / CELL_M);
+                let (i, j) = (
+                    (u.floor() as usize).min(n - 2),
+                    (v.floor() as usize).min(n - 2),
+                );
+                let (fu, fv) = (u - i as f64, v - j as f64);
+                let at = |a: usize, b: usize| h[b * n + a];
+                // MuJoCo splits each cell into two triangles along the (i,j)–(i+1,j+1) diagonal.
+                z = if fu >= fv {
+                    at(i, j)
+                        + fu * (at(i + 1, j) - at(i, j))
+                        + fv * (at(i + 1, j + 1) - at(i + 1, j))
+                } else {
+                    at(i, j)
+                        + fv * (at(i, j + 1) - at(i, j))
+                        + fu * (at(i + 1, j + 1) - at(i, j + 1))
+                };
+            } else {
+                z = Self::rough_floor(r);
+            }
+        }
+        if let Some(r) = &self.ramp {
+            let run = r.rise_m / r.grade;
+            let d = x - r.start_x_m;
+            z = z.max(if d <= 0.0 {
+                0.0
+            } else if d <= run {
+                d * r.grade
+            } else if d <= run + r.plateau_m {
+                r.rise_m
+            } else {
+                (r.rise_m - (d - run - r.plateau_m) * r.grade).max(0.0)
+            });
+        }
+        if let Some(s) = &self.step {
+            if x >= s.at_x_m && x <= s.at_x_m + 10.0 {
+                z = z.max(s.height_m);
+            }
+        }
+        z
+    }
+
+    fn rough_floor(r: &Rough) -> f64 {
+        -r.amplitude_m * 2.0 - 0.01
+    }
+
+    /// The MJCF pieces of this terrain; `floor_friction` is the robot file's.
+    pub fn scene(&self, floor_friction: f64) -> SceneExtras {
+        let mut x = SceneExtras::default();
+        let geom = |name: &str, body: &str, mu: f64, priority: u8| {
+            format!(
+                r#"    <geom name="{name}" {body} contype="1" conaffinity="1" priority="{priority}" condim="3" friction="{mu} 0.02 0.01" solimp="{SOLIMP}" rgba="0.7 0.7 0.75 1"/>
+"#
+            )
+        };
+        if let Some(r) = &self.rough {
+            let (n, h) = Self::rough_grid(r);
+            let (lo, hi) = h
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &z| {
+                    (a.min(z), b.max(z))
+                });
+            let span = (hi - lo).max(1e-6);
+            let mut elev = String::with_capacity(n * n * 7);
+            // MuJoCo's first elevation row is the field's +y edge.
+            for row in h.chunks(n).rev() {
+                for z in row {
+                    write!(elev, "{:.5} ", (z - lo) / span).unwrap();
+                }
+            }
+            write!(
+                x.assets_xml,
+                r#"<hfield name="rough" nrow="{n}" ncol="{n}" size="{half} {half} {span} 0.05" elevation="{elev}"/>"#,
+                half = r.size_m / 2.0,
+            )
+            .unwrap();
+            x.world_geoms_xml += &geom(
+                "terrain_rough",
+                &format!(r#"type="hfield" hfield="rough" pos="0 0 {lo}""#),
+                floor_friction,
+                1,
+            );
+            x.floor_z_m = Self::rough_floor(r);
+        }
+        if let Some(r) = &self.ramp {
+            let run = r.rise_m / r.grade;
+            let theta = r.grade.atan();
+            let len = run.hypot(r.rise_m);
+            let t = 0.05; // half thickness
+                          // A tilted box whose top face runs along the ramp surface.
+            for (name, cx, sign) in [
+                ("terrain_ramp_up", r.start_x_m + run / 2.0, -1.0),
+                (
+                    "terrain_ramp_down",
+                    r.start_x_m + 1.5 * run + r.plateau_m,
+                    1.0,
+                ),
+            ] {
+                let (cz, cxo) = (r.rise_m / 2.0 - t * theta.cos(), -sign * t * theta.sin());
+                x.world_geoms_xml += &geom(
+                    name,
+                    &format!(
+                        r#"type="box" size="{} 4 {t}" pos="{} 0 {cz}" euler="0 {} 0""#,
+                        len / 2.0,
+                        cx + cxo,
+                        sign * theta
+                    ),
+                    floor_friction,
+                    1,
+                );
+            }
+            if r.plateau_m > 0.0 {
+                x.world_geoms_xml += &geom(
+                    "terrain_plateau",
+                    &format!(
+                        r#"type="box" size="{} 4 {}" pos="{} 0 {}""#,
+                        r.plateau_m / 2.0,
+                        r.rise_m / 2.0,
+                        r.start_x_m + run + r.plateau_m / 2.0,
+                        r.rise_m / 2.0
+                    ),
+                    floor_friction,
+                    1,
+                );
+            }
+        }
+        if let Some(s) = &self.step {
+            x.world_geoms_xml += &geom(
+                "terrain_step",
+                &format!(
+                    r#"type="box" size="5 4 {}" pos="{} 0 {}""#,
+                    s.height_m / 2.0,
+                    s.at_x_m + 5.0,
+                    s.height_m / 2.0
+                ),
+                floor_friction,
+                1,
+            );
+        }
+        for (i, p) in self.friction_patch.iter().enumerate() {
+            // 1 mm thick, above anything else: its friction wins (priority 2).
+            x.world_geoms_xml += &geom(
+                &format!("terrain_patch_{i}"),
+                &format!(
+                    r#"type="box" size="{} {} 0.0005" pos="{} 0 {}""#,
+                    (p.x1_m - p.x0_m) / 2.0,
+                    p.width_m / 2.0,
+                    (p.x0_m + p.x1_m) / 2.0,
+                    self.height_at((p.x0_m + p.x1_m) / 2.0, 0.0)
+                ),
+                p.friction,
+                2,
+            );
+        }
+        x
+    }
+}

@@ -1,0 +1,127 @@
+//! Each terrain builds, says its own height right (against MuJoCo's ray casts), and a sphere
+//! dropped on it comes to rest at that height.
+
+use eemp_core::leg::LegMap;
+use eemp_core::robot::RobotConfig;
+use eemp_sim::terrain::{FrictionPatch, Ramp, Rough, Step, Terrain};
+use eemp_sim::Simulation;
+use mujoco_rs::prelude::*;
+use nalgebra::Vector3;
+
+fn terrains() -> Vec<(&'static str, Terrain)> {
+    vec![
+        (
+            "rough",
+            Terrain {
+                rough: Some(Rough {
+                    amplitude_m: 0.02,
+                    wavelength_m: 0.5,
+                    seed: 3,
+                    size_m: 8.0,
+                }),
+                ..Default::default()
+            },
+        ),
+        (
+            "ramp",
+            Terrain {
+                ramp: Some(Ramp {
+                    start_x_m: 1.0,
+                    grade: 0.1,
+                    rise_m: 0.2,
+                    plateau_m: 1.0,
+                }),
+                ..Default::default()
+            },
+        ),
+        (
+            "step",
+            Terrain {
+                step: Some(Step {
+                    at_x_m: 1.0,
+                    height_m: 0.04,
+                }),
+                friction_patch: vec![FrictionPatch {
+                    x0_m: 0.5,
+                    x1_m: 0.9,
+                    width_m: 4.0,
+                    friction: 0.2,
+                }],
+                ..Default::default()
+            },
+        ),
+    ]
+}
+
+const R: f64 = 0.03;
+
+fn with_probe(t: &Terrain, at: [f64; 2]) -> Simulation {
+    let robot = RobotConfig::a1();
+    let mut extras = t.scene(robot.simulation.floor_friction);
+    extras.world_geoms_xml += &format!(
+        r#"    <body name="probe" pos="{} {} {}"><freejoint/><geom name="probe" type="sphere" size="{R}" mass="0.2" contype="1" conaffinity="1" condim="6" friction="1 0.5 0.5"/></body>
+"#,
+        at[0],
+        at[1],
+        t.height_at(at[0], at[1]) + R + 0.02
+    );
+    Simulation::new(&robot, &extras).unwrap()
+}
+
+#[test]
+fn every_terrain_reports_the_height_mujoco_sees() {
+    for (name, t) in terrains() {
+        t.validate().unwrap();
+        let mut sim = with_probe(&t, [0.0, 3.5]);
+        sim.data_mut().forward();
+        for k in 0..200 {
+            let (x, y) = (-1.5 + 0.031 * k as f64, 1.2 + 0.013 * (k % 37) as f64);
+            let (hit, dist) =
+                sim.data_mut()
+                    .ray(&[x, y, 2.0], &[0.0, 0.0, -1.0], None, true, None, None);
+            assert!(hit.is_some(), "{name}: nothing below ({x}, {y})");
+            let ground = 2.0 - dist;
+            let said = t.height_at(x, y);
+            assert!(
+                (ground - said).abs() < 2e-3,
+                "{name} at ({x:.3}, {y:.3}): MuJoCo {ground:.4} m, terrain says {said:.4} m"
+            );
+        }
+    }
+}
+
+/// Where the probe sphere comes to rest (its centre), dropped at `at`.
+fn rest(t: &Terrain, at: [f64; 2]) -> [f64; 3] {
+    let mut sim = with_probe(t, at);
+    for _ in 0..1500 {
+        sim.step_bare(&LegMap::splat(Vector3::zeros()));
+    }
+    let body = sim
+        .model()
+        .name_to_id(MjtObjBase::mjOBJ_BODY, "probe")
+        .unwrap();
+    sim.data().xpos()[body]
+}
+
+#[test]
+fn a_sphere_rests_at_the_height_the_terrain_says() {
+    // The contacts are soft (the sphere sinks ~14 mm into any ground): the flat floor gives the
+    // resting height of the same sphere on level ground.
+    let flat = rest(&Terrain::default(), [1.3, 2.2])[2];
+    assert!((flat - R).abs() < 0.02);
+    for (name, t) in terrains() {
+        // On the plateau / after the step / in the field.
+        let at = match name {
+            "ramp" => [3.5, 2.0],
+            "step" => [1.5, 2.0],
+            _ => [1.3, 2.2],
+        };
+        let p = rest(&t, at);
+        let expected = t.height_at(p[0], p[1]) + flat;
+        assert!(
+            (p[2] - expected).abs() < 0.003,
+            "{name}: sphere at {:.4} m, the terrain says it rests at {expected:.4} m",
+            p[2]
+        );
+    }
+}
