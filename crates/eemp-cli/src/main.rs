@@ -19,7 +19,7 @@ enum Command {
     /// Rise from the ground and follow a body-motion profile on four stance legs.
     Stand(stand_cmd::StandArgs),
     /// Walk under EEMP at a commanded velocity; metrics and figures in --out.
-    Walk(walk_cmd::WalkArgs),
+    Walk(Box<walk_cmd::WalkArgs>),
     /// Parameter study (EEMP-Analytical): run a grid of walks (resumable, shardable), merge
     /// shards, report the best parameters per speed.
     Sweep(sweep_cmd::SweepArgs),
