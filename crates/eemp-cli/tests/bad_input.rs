@@ -105,13 +105,34 @@ fn bad_training_and_policy_input_exits_2_names_the_file_and_writes_nothing() {
     let not_a_policy = dir.join("policy.safetensors");
     std::fs::write(&not_a_policy, b"junk").unwrap();
     let missing = dir.join("missing.safetensors");
+    let terrain = dir.join("terrain.toml");
+    std::fs::write(
+        &terrain,
+        "[rough]\namplitude_m = 0.5\nwavelength_m = 0.5\nseed = 1\n",
+    )
+    .unwrap();
+    let terrain_key = dir.join("terrain_key.toml");
+    std::fs::write(&terrain_key, "[lava]\ndepth_m = 1\n").unwrap();
+    let (terrain, terrain_key) = (terrain.to_str().unwrap(), terrain_key.to_str().unwrap());
     let (bad_config, cart_config, not_a_policy, missing) = (
         bad_config.to_str().unwrap(),
         cart_config.to_str().unwrap(),
         not_a_policy.to_str().unwrap(),
         missing.to_str().unwrap(),
     );
-    let cases: [(&[&str], &[&str]); 8] = [
+    let cases: [(&[&str], &[&str]); 11] = [
+        (
+            &["walk", "--terrain", terrain],
+            &["terrain.toml", "terrain.rough.amplitude_m", "[0.001, 0.1]"],
+        ),
+        (
+            &["walk", "--terrain", terrain_key],
+            &["terrain_key.toml", "lava"],
+        ),
+        (
+            &["walk", "--estimator", "magic"],
+            &["magic", "ground-truth, kf"],
+        ),
         (
             &["train", "--task", "dance"],
             &["dance", "model-free, cart-pole"],
