@@ -74,11 +74,13 @@ pub struct WalkArgs {
     /// The body reference follows a change of the command at most this fast, m/s².
     #[arg(long, default_value_t = PlannerConfig::default().max_accel_mps2)]
     pub max_accel: f64,
-    /// Terrain file (TOML: `[rough]` amplitude_m/wavelength_m/seed/size_m, `[ramp]`
-    /// start_x_m/grade/rise_m/plateau_m, `[step]` at_x_m/height_m, `[[friction_patch]]`
-    /// x0_m/x1_m/width_m/friction); default: the flat floor.
+    /// Scenario file (scenarios/*.toml): `[terrain.rough]` amplitude_m/wavelength_m/seed/size_m,
+    /// `[terrain.ramp]` start_x_m/grade/rise_m/plateau_m, `[terrain.step]` at_x_m/height_m,
+    /// `[[terrain.friction_patch]]` x0_m/x1_m/width_m/friction, floor_friction, `[[push]]`
+    /// at_s/dv_mps, `[push_schedule]` first_s/every_s/dv_mps, payload_kg, `[sensors]` (noise
+    /// for --estimator kf). Applied on top of the other options.
     #[arg(long)]
-    pub terrain: Option<PathBuf>,
+    pub scenario: Option<PathBuf>,
     /// Floor friction coefficient (slippery ground below ~0.4); default: the robot file's.
     #[arg(long)]
     pub friction: Option<f64>,
@@ -200,11 +202,17 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
         &robot,
     )?;
     spec.floor_friction = args.friction;
-    if let Some(p) = &args.terrain {
-        spec.terrain = load_toml(p).map_err(|e| e.to_string())?;
-        spec.terrain
-            .validate()
-            .map_err(|e| format!("{}: {e}", p.display()))?;
+    let scenario = match &args.scenario {
+        Some(p) => Some(eemp_sim::scenario::Scenario::load(p).map_err(|e| e.to_string())?),
+        None => None,
+    };
+    if let Some(sc) = &scenario {
+        sc.apply(&mut spec);
+        if let Some(noise) = &sc.sensors {
+            if let eemp_sim::closed_loop::StateSource::Kf { sensors, .. } = &mut spec.state_source {
+                *sensors = noise.clone();
+            }
+        }
     }
     spec.params_table = params_table;
     if let Some(at) = args.push_at {
@@ -394,7 +402,7 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
             "planner": st.stages.planner_s / total,
             "logging": st.stages.observer_s / total,
         },
-        "terrain": args.terrain.as_ref().map(|p| p.display().to_string()),
+        "scenario": args.scenario.as_ref().map(|p| p.display().to_string()),
         "state_estimate": spec.state_source.name(),
         "estimation_vel_rmse_mps": run.estimation.vel_rmse_mps(),
         "estimation_pos_rmse_m": run.estimation.pos_rmse_m(),

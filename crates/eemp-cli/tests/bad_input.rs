@@ -122,11 +122,11 @@ fn bad_training_and_policy_input_exits_2_names_the_file_and_writes_nothing() {
     );
     let cases: [(&[&str], &[&str]); 11] = [
         (
-            &["walk", "--terrain", terrain],
+            &["walk", "--scenario", terrain],
             &["terrain.toml", "terrain.rough.amplitude_m", "[0.001, 0.1]"],
         ),
         (
-            &["walk", "--terrain", terrain_key],
+            &["walk", "--scenario", terrain_key],
             &["terrain_key.toml", "lava"],
         ),
         (

@@ -3,6 +3,7 @@
 pub mod backend;
 pub mod closed_loop;
 pub mod mjcf;
+pub mod scenario;
 pub mod sensors;
 pub mod stand;
 pub mod terrain;

@@ -131,6 +131,8 @@ pub struct WalkSpec {
     pub state_source: StateSource,
     /// The ground (flat by default).
     pub terrain: Terrain,
+    /// Mass added at the trunk's centre of mass, kg (the controllers keep the nominal model).
+    pub payload_kg: f64,
 }
 
 impl WalkSpec {
@@ -154,6 +156,7 @@ impl WalkSpec {
             seed: 0,
             state_source: StateSource::GroundTruth,
             terrain: Terrain::default(),
+            payload_kg: 0.0,
         }
     }
 
@@ -196,6 +199,7 @@ impl WalkSpec {
             check_range("floor_friction", mu, 0.05, 5.0)?;
         }
         self.terrain.validate()?;
+        check_range("payload_kg", self.payload_kg, 0.0, 10.0)?;
         if let StateSource::Kf { kf, sensors, .. } = &self.state_source {
             kf.validate()?;
             sensors.validate()?;
@@ -330,6 +334,9 @@ pub fn run_walk_with(
     if let Some(mu) = spec.floor_friction {
         robot.simulation.floor_friction = mu;
     }
+    // The simulated robot carries the payload; `robot` (what the controllers were built from)
+    // does not know.
+    robot.trunk.mass_kg += spec.payload_kg;
     let scene = spec.terrain.scene(robot.simulation.floor_friction);
     let mut sim = Simulation::new(&robot, &scene)?;
     reset_to_start(&mut sim, start, spec.seed);

@@ -1,0 +1,141 @@
+//! Scenario files (`scenarios/*.toml`): what the world does to a walk — terrain, floor friction,
+//! pushes (at given times or every few seconds), a payload, and the sensors' noise — in one
+//! validated file that `eemp walk --scenario FILE` applies to any controller.
+
+use crate::closed_loop::Push;
+use crate::sensors::SensorNoise;
+use crate::terrain::Terrain;
+use crate::walk::WalkSpec;
+use eemp_core::config_error::{check_range, ConfigError};
+use nalgebra::Vector3;
+use serde::{Deserialize, Serialize};
+
+/// One push: the trunk's velocity changes by `dv_mps` (world frame) at `at_s`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PushSpec {
+    pub at_s: f64,
+    pub dv_mps: [f64; 3],
+}
+
+/// Pushes of the same size every `every_s` from `first_s` on, alternating left and right.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PushSchedule {
+    pub first_s: f64,
+    pub every_s: f64,
+    /// Size of the lateral velocity change, m/s.
+    pub dv_mps: f64,
+}
+
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scenario {
+    #[serde(default)]
+    pub terrain: Terrain,
+    /// Floor friction; default: the robot file's.
+    #[serde(default)]
+    pub floor_friction: Option<f64>,
+    #[serde(default)]
+    pub push: Vec<PushSpec>,
+    #[serde(default)]
+    pub push_schedule: Option<PushSchedule>,
+    #[serde(default)]
+    pub payload_kg: f64,
+    /// Sensor noise for runs on the estimator; default: `SensorNoise::default()`.
+    #[serde(default)]
+    pub sensors: Option<SensorNoise>,
+}
+
+impl Scenario {
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        self.terrain.validate()?;
+        if let Some(mu) = self.floor_friction {
+            check_range("floor_friction", mu, 0.05, 5.0)?;
+        }
+        for (i, p) in self.push.iter().enumerate() {
+            check_range(&format!("push[{i}].at_s"), p.at_s, 0.0, 3600.0)?;
+            for (k, v) in p.dv_mps.iter().enumerate() {
+                check_range(&format!("push[{i}].dv_mps[{k}]"), *v, -3.0, 3.0)?;
+            }
+        }
+        if let Some(s) = &self.push_schedule {
+            check_range("push_schedule.first_s", s.first_s, 0.0, 3600.0)?;
+            check_range("push_schedule.every_s", s.every_s, 0.2, 3600.0)?;
+            check_range("push_schedule.dv_mps", s.dv_mps, 0.0, 3.0)?;
+        }
+        check_range("payload_kg", self.payload_kg, 0.0, 10.0)?;
+        if let Some(s) = &self.sensors {
+            s.validate()?;
+        }
+        Ok(())
+    }
+
+    /// Reads and validates a scenario file; errors name the file and the key.
+    pub fn load(path: &std::path::Path) -> Result<Self, ConfigError> {
+        let s: Scenario = eemp_core::config_error::load_toml(path)?;
+        s.validate().map_err(|e| ConfigError::Invalid {
+            name: path.display().to_string(),
+            message: e.to_string(),
+        })?;
+        Ok(s)
+    }
+
+    /// Every push of a run of `duration_s`.
+    pub fn pushes(&self, duration_s: f64) -> Vec<Push> {
+        let mut out: Vec<Push> = self
+            .push
+            .iter()
+            .map(|p| Push {
+                at_s: p.at_s,
+                dv_world: Vector3::from(p.dv_mps),
+            })
+            .collect();
+        if let Some(s) = &self.push_schedule {
+            let mut t = s.first_s;
+            let mut side = 1.0;
+            while t < duration_s {
+                out.push(Push {
+                    at_s: t,
+                    dv_world: Vector3::new(0.0, side * s.dv_mps, 0.0),
+                });
+                side = -side;
+                t += s.every_s;
+            }
+        }
+        out.sort_by(|a, b| a.at_s.total_cmp(&b.at_s));
+        out
+    }
+
+    /// Applies the scenario to a walk (terrain, friction, pushes, payload).
+    pub fn apply(&self, spec: &mut WalkSpec) {
+        spec.terrain = self.terrain.clone();
+        if self.floor_friction.is_some() {
+            spec.floor_friction = self.floor_friction;
+        }
+        spec.pushes.extend(self.pushes(spec.duration_s));
+        spec.payload_kg = self.payload_kg;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_push_schedule_alternates_sides_until_the_end() {
+        let s = Scenario {
+            push_schedule: Some(PushSchedule {
+                first_s: 2.0,
+                every_s: 4.0,
+                dv_mps: 0.5,
+            }),
+            ..Default::default()
+        };
+        let p = s.pushes(12.0);
+        assert_eq!(p.len(), 3);
+        assert_eq!(p[1].at_s, 6.0);
+        assert_eq!(p[0].dv_world.y, 0.5);
+        assert_eq!(p[1].dv_world.y, -0.5);
+    }
+}
