@@ -108,7 +108,7 @@ fn bad_training_and_policy_input_exits_2_names_the_file_and_writes_nothing() {
     let terrain = dir.join("terrain.toml");
     std::fs::write(
         &terrain,
-        "[rough]\namplitude_m = 0.5\nwavelength_m = 0.5\nseed = 1\n",
+        "[terrain.rough]\namplitude_m = 0.5\nwavelength_m = 0.5\nseed = 1\n",
     )
     .unwrap();
     let terrain_key = dir.join("terrain_key.toml");
