@@ -4,15 +4,14 @@
 //! visited (a falling, flailing robot costs MuJoCo more than a standing one, so a bare step on a
 //! calm robot would flatter nothing but the ratio), with the ratios the targets use.
 
-use eemp_core::leg::LegMap;
+use eemp_core::joint_pd::pd_torques;
 use eemp_core::robot::RobotConfig;
 use eemp_rl::config::TrainConfig;
 use eemp_rl::env::VecEnv;
-use eemp_rl::tasks::model_free::{training_model, ModelFreeEnv};
+use eemp_rl::tasks::model_free::{joint_targets, training_model, ModelFreeEnv};
 use eemp_rl::train::{train, TrainOptions};
 use eemp_sim::backend::SimSnapshot;
 use eemp_sim::Simulation;
-use nalgebra::Vector3;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::time::Instant;
@@ -38,13 +37,13 @@ pub struct RlBenchReport {
 }
 
 /// Env steps per second with uniform random actions; with `record`, the simulator state of
-/// every env before every step (to time bare MuJoCo steps on the very same states).
+/// every env before every step and the action it got (to replay the very same MuJoCo steps).
 fn env_rate(
     config: &TrainConfig,
     robot: &RobotConfig,
     o: &RlBenchOptions,
     threads: usize,
-    mut record: Option<&mut Vec<SimSnapshot>>,
+    mut record: Option<&mut Vec<(SimSnapshot, Vec<f32>)>>,
 ) -> Result<f64, String> {
     let model = training_model(robot, &config.model_free)?;
     let envs = (0..o.num_envs)
@@ -59,7 +58,12 @@ fn env_rate(
     let mut elapsed = 0.0;
     for a in &actions {
         if let Some(r) = record.as_deref_mut() {
-            r.extend(v.envs().map(|e| e.sim().snapshot()));
+            let act = v.act_dim();
+            r.extend(
+                v.envs()
+                    .enumerate()
+                    .map(|(i, e)| (e.sim().snapshot(), a[i * act..(i + 1) * act].to_vec())),
+            );
         }
         let t = Instant::now();
         v.step(a);
@@ -81,19 +85,27 @@ pub fn bench_rl(o: &RlBenchOptions) -> Result<RlBenchReport, String> {
     let mut states = Vec::new();
     let one = env_rate(&config, &robot, o, 1, Some(&mut states))?;
     let all = env_rate(&config, &robot, o, o.threads, None)?;
-    // Bare MuJoCo: mj_step alone, `substeps` of them from each state the envs visited, with
-    // the torques the PD had just applied there.
+    // Bare MuJoCo: mj_step alone, `substeps` of them from each state the envs visited, with the
+    // joint PD's torques for the action they got (so MuJoCo does the same work as in the env:
+    // the PD's changing torques cost its solver more iterations than constant ones).
     let model = training_model(&robot, &config.model_free)?;
     let mut sim = Simulation::with_model(model, &robot).map_err(|e| e.to_string())?;
+    let q0 = robot.standing_pose();
+    let mf = &config.model_free;
     let mut bare_time = 0.0;
-    for s in &states {
+    for (s, action) in &states {
         sim.restore(s).map_err(|e| e.to_string())?;
-        let tau = LegMap::from_fn(|leg| {
-            let k = 3 * leg.index();
-            Vector3::new(s.ctrl[k], s.ctrl[k + 1], s.ctrl[k + 2])
-        });
+        let targets = joint_targets(mf, &q0, action);
         let t = Instant::now();
         for _ in 0..substeps {
+            let st = sim.ground_truth_state();
+            let tau = pd_torques(
+                &mf.pd,
+                &targets,
+                &st.joints.map(|_, j| j.q),
+                &st.joints.map(|_, j| j.qd),
+                robot.leg.torque_limit_nm,
+            );
             sim.step_bare(&tau);
         }
         bare_time += t.elapsed().as_secs_f64();
