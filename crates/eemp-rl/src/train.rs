@@ -314,12 +314,7 @@ impl<E: Env> Trainer<E> {
                 .and_then(|m| m.flatten_all())
                 .and_then(|m| m.to_vec1())
                 .map_err(|e| e.to_string())?;
-            let values: Vec<f32> = self
-                .policy
-                .net
-                .value(&x)
-                .and_then(|v| v.to_vec1())
-                .map_err(|e| e.to_string())?;
+            let values: Vec<f32> = values_of(&self.policy, &x)?;
             if mean.iter().chain(&values).any(|v| !v.is_finite()) {
                 return Err(format!(
                     "the network produced a non-finite action or value at iteration {}; \
@@ -355,12 +350,7 @@ impl<E: Env> Trainer<E> {
                 self.policy.normalizer.apply(&fo, &mut fon);
                 let t = Tensor::from_vec(fon, (truncated.len(), d), &Device::Cpu)
                     .map_err(|e| e.to_string())?;
-                let v: Vec<f32> = self
-                    .policy
-                    .net
-                    .value(&t)
-                    .and_then(|v| v.to_vec1())
-                    .map_err(|e| e.to_string())?;
+                let v: Vec<f32> = values_of(&self.policy, &t)?;
                 for (j, &e) in truncated.iter().enumerate() {
                     bootstrap[e] = (cfg.ppo.gamma as f32) * v[j];
                 }
@@ -394,12 +384,7 @@ impl<E: Env> Trainer<E> {
         }
         self.policy.normalizer.apply(&self.envs.obs, &mut obs_n);
         let x = Tensor::from_vec(obs_n, (n, d), &Device::Cpu).map_err(|e| e.to_string())?;
-        let last_values: Vec<f32> = self
-            .policy
-            .net
-            .value(&x)
-            .and_then(|v| v.to_vec1())
-            .map_err(|e| e.to_string())?;
+        let last_values: Vec<f32> = values_of(&self.policy, &x)?;
         let progress = self.iteration as f64 / self.total_iterations().max(1) as f64;
         let stats = update(
             &self.policy.net,
@@ -530,6 +515,15 @@ impl<E: Env> Trainer<E> {
         self.recent_lengths = s.recent_lengths.into();
         Ok(())
     }
+}
+
+/// V(o) for a batch of normalised observations.
+fn values_of(policy: &Policy, x: &Tensor) -> Result<Vec<f32>, String> {
+    policy
+        .net
+        .value(x)
+        .and_then(|v| v.to_vec1())
+        .map_err(|e| e.to_string())
 }
 
 fn write_row(f: &mut std::fs::File, l: &IterationLog, n_terms: usize) -> Result<(), String> {

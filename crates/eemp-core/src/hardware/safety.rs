@@ -36,6 +36,16 @@ pub struct MeasuredJoints {
     pub tau: LegMap<Vector3<f64>>,
 }
 
+impl MeasuredJoints {
+    /// Mechanical power Σ|τ·q̇| over the 12 joints, W (what PowerProtect limits).
+    pub fn power_w(&self) -> f64 {
+        Leg::ALL
+            .iter()
+            .map(|l| self.tau[*l].component_mul(&self.dq[*l]).abs().sum())
+            .sum()
+    }
+}
+
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct SafetyConfig {
@@ -165,14 +175,7 @@ impl SafetyLayer {
     /// A state arrived from the robot.
     pub fn observe(&mut self, state: MeasuredJoints) {
         // PowerProtect: counts up while over the limit (to 10), down otherwise; > 5 trips.
-        let p: f64 = Leg::ALL
-            .iter()
-            .map(|l| {
-                (0..3)
-                    .map(|j| (state.tau[*l][j] * state.dq[*l][j]).abs())
-                    .sum::<f64>()
-            })
-            .sum();
+        let p = state.power_w();
         if p > self.config.power_limit_w {
             self.power_count = (self.power_count + 1).min(10);
         } else {
@@ -205,15 +208,9 @@ impl SafetyLayer {
                 return (damping(c.damping_kd), log);
             }
             Some(Damping::PowerProtect) => {
-                let p = Leg::ALL
-                    .iter()
-                    .map(|l| {
-                        (0..3)
-                            .map(|j| (state.tau[*l][j] * state.dq[*l][j]).abs())
-                            .sum::<f64>()
-                    })
-                    .sum();
-                log.push(Intervention::PowerProtect { power_w: p });
+                log.push(Intervention::PowerProtect {
+                    power_w: state.power_w(),
+                });
                 return (damping(c.damping_kd), log);
             }
             None => {}
