@@ -293,9 +293,10 @@ impl ClosedLoop {
         self.stance_since = LegMap::splat(Some(self.t_start));
         self.last_torques = LegMap::splat(Vector3::zeros());
         self.estimation = EstimationStats::default();
-        if let Some((kf, _)) = self.estimator.as_mut() {
+        if let Some((kf, sensors)) = self.estimator.as_mut() {
             self.sim.prepare_kinematics();
             kf.reset(&self.sim.ground_truth_state());
+            sensors.clear();
         }
     }
 
@@ -340,10 +341,24 @@ impl ClosedLoop {
             false => truth,
             true => {
                 // Encoders and the IMU; the attitude comes from the IMU as on the A1.
-                let trust = self.contact_trust(controller, &truth);
                 let imu = self.sim.imu();
-                let (kf, sensors) = self.estimator.as_mut().expect("checked");
-                let seen = sensors.read(imu, &truth.joints);
+                let seen = self
+                    .estimator
+                    .as_mut()
+                    .expect("checked")
+                    .1
+                    .read(imu, &truth.joints);
+                // Trust from the plan, or from the sensed joints, attitude and last torques.
+                let sensed = RobotState {
+                    time_s: truth.time_s,
+                    body: eemp_core::body_state::BodyState {
+                        r_world_body: seen.imu.r_world_body,
+                        ..truth.body
+                    },
+                    joints: seen.joints,
+                };
+                let trust = self.contact_trust(controller, &sensed);
+                let kf = &mut self.estimator.as_mut().expect("checked").0;
                 let est = kf.update(&EstimatorInput {
                     time_s: truth.time_s,
                     imu: seen.imu,

@@ -113,6 +113,11 @@ impl Sensors {
         Vector3::new(self.u(level), self.u(level), self.u(level))
     }
 
+    /// Forgets the readings in the latency pipe (a new episode).
+    pub fn clear(&mut self) {
+        self.queue.clear();
+    }
+
     /// Takes the true readings of this step; returns what the robot sees now (the reading of
     /// `latency` ago, noisy). Until the pipe has filled, the oldest reading is repeated.
     pub fn read(&mut self, imu: ImuReading, joints: &LegMap<LegJointState>) -> SensorReading {

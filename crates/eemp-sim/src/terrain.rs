@@ -80,8 +80,17 @@ pub struct Terrain {
     pub friction_patch: Vec<FrictionPatch>,
 }
 
+/// Half thickness of a friction patch's mat, m.
+const PATCH_HALF_M: f64 = 0.0015;
+
 /// Height-field grid spacing, m.
 const CELL_M: f64 = 0.05;
+
+/// Grid points per side and their actual spacing (the size need not be a multiple of CELL_M).
+fn grid(size_m: f64) -> (usize, f64) {
+    let n = (size_m / CELL_M).round() as usize + 1;
+    (n, size_m / (n - 1) as f64)
+}
 
 impl Terrain {
     pub fn validate(&self) -> Result<(), ConfigError> {
@@ -126,12 +135,19 @@ impl Terrain {
                 5.0,
             )?;
         }
-        if self.rough.is_some()
-            && (self.ramp.is_some() || self.step.is_some() || !self.friction_patch.is_empty())
-        {
+        if self.rough.is_some() && (self.ramp.is_some() || self.step.is_some()) {
             return Err(ConfigError::Invalid {
                 name: "terrain".into(),
-                message: "a rough field cannot be combined with a ramp, a step or a friction patch"
+                message: "a rough field cannot be combined with a ramp or a step".into(),
+            });
+        }
+        if !self.friction_patch.is_empty()
+            && (self.rough.is_some() || self.ramp.is_some() || self.step.is_some())
+        {
+            return Err(ConfigError::Invalid {
+                name: "terrain.friction_patch".into(),
+                message: "patches lie on the flat floor: they cannot be combined with rough \
+                          ground, a ramp or a step"
                     .into(),
             });
         }
@@ -140,7 +156,7 @@ impl Terrain {
 
     /// The rough field's heights, row-major (y rows, x columns), and its grid size.
     fn rough_grid(r: &Rough) -> (usize, Vec<f64>) {
-        let n = (r.size_m / CELL_M).round() as usize + 1;
+        let (n, cell) = grid(r.size_m);
         // Random heights on a lattice of the wavelength, smoothly interpolated (value noise).
         let m = (r.size_m / r.wavelength_m).ceil() as usize + 2;
         let mut rng = ChaCha8Rng::seed_from_u64(r.seed);
@@ -150,8 +166,8 @@ impl Terrain {
         for iy in 0..n {
             for ix in 0..n {
                 let (u, v) = (
-                    ix as f64 * CELL_M / r.wavelength_m,
-                    iy as f64 * CELL_M / r.wavelength_m,
+                    ix as f64 * cell / r.wavelength_m,
+                    iy as f64 * cell / r.wavelength_m,
                 );
                 let (i, j) = (u.floor() as usize, v.floor() as usize);
                 let (fu, fv) = (smooth(u - i as f64), smooth(v - j as f64));
@@ -166,7 +182,7 @@ impl Terrain {
         let half = r.size_m / 2.0;
         for iy in 0..n {
             for ix in 0..n {
-                let d = (ix as f64 * CELL_M - half).hypot(iy as f64 * CELL_M - half);
+                let d = (ix as f64 * cell - half).hypot(iy as f64 * cell - half);
                 let w = ((d - 0.5) / 0.5).clamp(0.0, 1.0);
                 h[iy * n + ix] *= w * w * (3.0 - 2.0 * w);
             }
@@ -181,7 +197,8 @@ impl Terrain {
             let (n, h) = Self::rough_grid(r);
             let half = r.size_m / 2.0;
             if x.abs() <= half && y.abs() <= half {
-                let (u, v) = ((x + half) / CELL_M, (y + half) / CELL_M);
+                let cell = grid(r.size_m).1;
+                let (u, v) = ((x + half) / cell, (y + half) / cell);
                 let (i, j) = (
                     (u.floor() as usize).min(n - 2),
                     (v.floor() as usize).min(n - 2),
@@ -218,6 +235,11 @@ impl Terrain {
         if let Some(s) = &self.step {
             if x >= s.at_x_m && x <= s.at_x_m + 10.0 {
                 z = z.max(s.height_m);
+            }
+        }
+        for p in &self.friction_patch {
+            if x >= p.x0_m && x <= p.x1_m && y.abs() <= p.width_m / 2.0 {
+                z = z.max(2.0 * PATCH_HALF_M);
             }
         }
         z
@@ -321,18 +343,15 @@ impl Terrain {
             );
         }
         for (i, p) in self.friction_patch.iter().enumerate() {
-            // 1 mm thick, above anything else: its friction wins (priority 2).
-            x.world_geoms_xml += &geom(
-                &format!("terrain_patch_{i}"),
-                &format!(
-                    r#"type="box" size="{} {} 0.0005" pos="{} 0 {}""#,
-                    (p.x1_m - p.x0_m) / 2.0,
-                    p.width_m / 2.0,
-                    (p.x0_m + p.x1_m) / 2.0,
-                    self.height_at((p.x0_m + p.x1_m) / 2.0, 0.0)
-                ),
+            // A 3 mm mat with a stiff surface (a loaded foot sinks ~1 mm into it, not the 17 mm
+            // of the soft floor), so the feet on it touch only it and its friction is the one.
+            x.world_geoms_xml += &format!(
+                r#"    <geom name="terrain_patch_{i}" type="box" size="{} {} {PATCH_HALF_M}" pos="{} 0 {PATCH_HALF_M}" contype="1" conaffinity="1" priority="2" condim="3" friction="{} 0.02 0.01" solref="0.004 1" solimp="0.95 0.99 0.001" rgba="0.5 0.6 0.9 1"/>
+"#,
+                (p.x1_m - p.x0_m) / 2.0,
+                p.width_m / 2.0,
+                (p.x0_m + p.x1_m) / 2.0,
                 p.friction,
-                2,
             );
         }
         x

@@ -41,16 +41,23 @@ fn terrains() -> Vec<(&'static str, Terrain)> {
                     at_x_m: 1.0,
                     height_m: 0.04,
                 }),
-                friction_patch: vec![FrictionPatch {
-                    x0_m: 0.5,
-                    x1_m: 0.9,
-                    width_m: 4.0,
-                    friction: 0.2,
-                }],
                 ..Default::default()
             },
         ),
+        ("patch", patch()),
     ]
+}
+
+fn patch() -> Terrain {
+    Terrain {
+        friction_patch: vec![FrictionPatch {
+            x0_m: 0.5,
+            x1_m: 2.5,
+            width_m: 4.0,
+            friction: 0.2,
+        }],
+        ..Default::default()
+    }
 }
 
 const R: f64 = 0.03;
@@ -114,14 +121,58 @@ fn a_sphere_rests_at_the_height_the_terrain_says() {
         let at = match name {
             "ramp" => [3.5, 2.0],
             "step" => [1.5, 2.0],
+            "patch" => [1.5, 1.0],
             _ => [1.3, 2.2],
         };
         let p = rest(&t, at);
-        let expected = t.height_at(p[0], p[1]) + flat;
+        // The patch is a stiff mat: the sphere hardly sinks into it.
+        let sink = if name == "patch" { 0.0 } else { flat - R };
+        let expected = t.height_at(p[0], p[1]) + R + sink;
         assert!(
-            (p[2] - expected).abs() < 0.003,
+            (p[2] - expected).abs() < 0.003 || (name == "patch" && (p[2] - expected).abs() < 0.002),
             "{name}: sphere at {:.4} m, the terrain says it rests at {expected:.4} m",
             p[2]
         );
     }
+}
+
+/// How far a 2 kg box launched at 1 m/s along x from `x0` slides before it stops.
+fn slide(t: &Terrain, x0: f64) -> f64 {
+    let robot = RobotConfig::a1();
+    let mut extras = t.scene(robot.simulation.floor_friction);
+    let z = t.height_at(x0, 1.0) + 0.05;
+    extras.world_geoms_xml += &format!(
+        r#"    <body name="puck" pos="{x0} 1 {z}"><freejoint/><geom type="box" size="0.05 0.05 0.05" mass="2" contype="1" conaffinity="1"/></body>
+"#
+    );
+    let mut sim = Simulation::new(&robot, &extras).unwrap();
+    let body = sim
+        .model()
+        .name_to_id(MjtObjBase::mjOBJ_BODY, "puck")
+        .unwrap();
+    for _ in 0..300 {
+        sim.step_bare(&LegMap::splat(Vector3::zeros()));
+    }
+    let start = sim.data().xpos()[body][0];
+    let dof = sim.model().body_dofadr()[body] as usize;
+    sim.data_mut().qvel_mut()[dof] = 1.0;
+    for _ in 0..2000 {
+        sim.step_bare(&LegMap::splat(Vector3::zeros()));
+    }
+    sim.data().xpos()[body][0] - start
+}
+
+#[test]
+fn a_box_slides_further_on_the_low_friction_patch() {
+    // v²/(2μg): 0.25 m at μ = 0.2, 0.064 m at the floor's 0.8.
+    let on_patch = slide(&patch(), 1.0);
+    let on_floor = slide(&Terrain::default(), 1.0);
+    assert!(
+        (on_patch - 0.255).abs() < 0.05,
+        "slid {on_patch} m on the patch"
+    );
+    assert!(
+        (on_floor - 0.064).abs() < 0.02,
+        "slid {on_floor} m on the floor"
+    );
 }

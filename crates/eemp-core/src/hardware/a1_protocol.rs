@@ -61,7 +61,7 @@ pub fn crc32_words(words: impl IntoIterator<Item = u32>) -> u32 {
 
 /// The CRC of a datagram: over its first `(len/4) − 1` little-endian words.
 pub fn datagram_crc(bytes: &[u8]) -> u32 {
-    let words = bytes.len() / 4 - 1;
+    let words = (bytes.len() / 4).saturating_sub(1);
     crc32_words(
         bytes[..4 * words]
             .chunks_exact(4)
@@ -350,6 +350,9 @@ impl LowState {
         check(bytes, LOW_STATE_LEN)?;
         let mut r = Reader { buf: bytes, at: 0 };
         let header = r.header();
+        if header.level_flag != LOWLEVEL {
+            return Err(ProtocolError::Level(header.level_flag));
+        }
         let f3 = |r: &mut Reader| [r.f32(), r.f32(), r.f32()];
         let imu = Imu {
             quaternion: [r.f32(), r.f32(), r.f32(), r.f32()],

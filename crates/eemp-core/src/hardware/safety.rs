@@ -5,6 +5,8 @@
 //! [`SafetyLayer::reset`]), power protection (the SDK's PowerProtect: Σ|τ·q̇| over the limit for
 //! more than 5 of the last checks → damping, latched), soft start (targets blended from the pose
 //! at start to the controller's over `soft_start_s`), joint position limits, torque limits.
+//! Gains are clamped, and the total torque the motor will apply (τ + K_p(q*−q) + K_d(q̇*−q̇)
+//! at the last measured state) is bounded by the torque limit; a command with a NaN gets damping.
 //! Every intervention is returned to the caller for its log.
 
 use crate::config_error::{check_range, ConfigError};
@@ -61,6 +63,9 @@ pub struct SafetyConfig {
     pub torque_limit_nm: f64,
     /// Margin kept inside the joint ranges, rad.
     pub joint_margin_rad: f64,
+    /// Largest position and velocity gains sent, N·m/rad and N·m·s/rad.
+    pub max_kp: f64,
+    pub max_kd: f64,
 }
 
 impl Default for SafetyConfig {
@@ -73,6 +78,8 @@ impl Default for SafetyConfig {
             damping_kd: 3.0,
             torque_limit_nm: 33.5,
             joint_margin_rad: 0.02,
+            max_kp: 200.0,
+            max_kd: 10.0,
         }
     }
 }
@@ -84,7 +91,9 @@ impl SafetyConfig {
         check_range("safety.soft_start_s", self.soft_start_s, 0.0, 30.0)?;
         check_range("safety.damping_kd", self.damping_kd, 0.0, 20.0)?;
         check_range("safety.torque_limit_nm", self.torque_limit_nm, 0.0, 33.5)?;
-        check_range("safety.joint_margin_rad", self.joint_margin_rad, 0.0, 0.3)
+        check_range("safety.joint_margin_rad", self.joint_margin_rad, 0.0, 0.3)?;
+        check_range("safety.max_kp", self.max_kp, 0.0, 1000.0)?;
+        check_range("safety.max_kd", self.max_kd, 0.0, 100.0)
     }
 }
 
@@ -113,6 +122,13 @@ pub enum Intervention {
         asked: f64,
         sent: f64,
     },
+    GainClamped {
+        leg: Leg,
+        joint: usize,
+        asked: [f64; 2],
+    },
+    /// A command held a NaN or infinity: damping for that step.
+    NonFinite,
 }
 
 /// Why the robot is latched in damping mode (until `reset`; the watchdog is not latched: it
@@ -176,7 +192,7 @@ impl SafetyLayer {
     pub fn observe(&mut self, state: MeasuredJoints) {
         // PowerProtect: counts up while over the limit (to 10), down otherwise; > 5 trips.
         let p = state.power_w();
-        if p > self.config.power_limit_w {
+        if p.is_nan() || p > self.config.power_limit_w {
             self.power_count = (self.power_count + 1).min(10);
         } else {
             self.power_count = self.power_count.saturating_sub(1);
@@ -200,6 +216,17 @@ impl SafetyLayer {
         let silent = now_s - state.time_s;
         if silent > c.watchdog_s {
             log.push(Intervention::Watchdog { silent_s: silent });
+            // When states come back the robot may have sagged: soft-start again from there.
+            self.start = None;
+            return (damping(c.damping_kd), log);
+        }
+        let finite = Leg::ALL.iter().all(|l| {
+            cmd[*l]
+                .iter()
+                .all(|j| [j.q, j.dq, j.kp, j.kd, j.tau].iter().all(|v| v.is_finite()))
+        });
+        if !finite {
+            log.push(Intervention::NonFinite);
             return (damping(c.damping_kd), log);
         }
         match self.latched {
@@ -225,6 +252,7 @@ impl SafetyLayer {
             log.push(Intervention::SoftStart { blend });
         }
         let mut out = *cmd;
+        let lim = c.torque_limit_nm;
         for leg in Leg::ALL {
             for j in 0..3 {
                 let o = &mut out[leg][j];
@@ -232,6 +260,15 @@ impl SafetyLayer {
                     // From holding the start pose to the controller's command.
                     o.q = q0[leg][j] + (o.q - q0[leg][j]) * blend;
                     o.tau *= blend;
+                }
+                let (kp, kd) = (o.kp.clamp(0.0, c.max_kp), o.kd.clamp(0.0, c.max_kd));
+                if (kp, kd) != (o.kp, o.kd) {
+                    log.push(Intervention::GainClamped {
+                        leg,
+                        joint: j,
+                        asked: [o.kp, o.kd],
+                    });
+                    (o.kp, o.kd) = (kp, kd);
                 }
                 let [lo, hi] = self.ranges[j];
                 let (lo, hi) = (lo + c.joint_margin_rad, hi - c.joint_margin_rad);
@@ -245,13 +282,25 @@ impl SafetyLayer {
                     });
                     o.q = sent;
                 }
-                let lim = c.torque_limit_nm;
-                if o.tau.is_nan() || o.tau.abs() > lim {
-                    let sent = if o.tau.is_nan() {
-                        0.0
-                    } else {
-                        o.tau.clamp(-lim, lim)
-                    };
+                // The motor applies τ + Kp(q* − q) + Kd(q̇* − q̇): bound that total at the last
+                // measured state, first by moving q* (the PD part alone), then τ.
+                let (q, dq) = (state.q[leg][j], state.dq[leg][j]);
+                let damp = o.kd * (o.dq - dq);
+                let pd = o.kp * (o.q - q) + damp;
+                if pd.abs() > lim && o.kp > 0.0 {
+                    let target = q + (lim.copysign(pd) - damp) / o.kp;
+                    log.push(Intervention::PositionClamped {
+                        leg,
+                        joint: j,
+                        asked: o.q,
+                        sent: target,
+                    });
+                    o.q = target;
+                }
+                let pd = (o.kp * (o.q - q) + o.kd * (o.dq - dq)).clamp(-lim, lim);
+                let (tlo, thi) = (-lim - pd, lim - pd);
+                if o.tau < tlo || o.tau > thi {
+                    let sent = o.tau.clamp(tlo, thi);
                     log.push(Intervention::TorqueClamped {
                         leg,
                         joint: j,
@@ -321,17 +370,32 @@ mod tests {
             |i| matches!(i, Intervention::SoftStart { blend } if (*blend - 0.5).abs() < 1e-12)
         ));
         s.observe(state(3.0, 0.9, 0.0, 0.0));
+        // Beyond the joint range and far from the measured 0.9 rad: the target is clamped into
+        // the range, then pulled in until the PD alone gives 33.5 N·m, and the feed-forward
+        // torque is cut to keep the total within the limit.
         let (out, log) = s.filter(3.0, &stand(5.0, 50.0));
-        assert!((out[Leg::RearRight][1].q - (4.18879 - 0.02)).abs() < 1e-9);
-        assert_eq!(out[Leg::RearRight][1].tau, 33.5);
+        assert!((out[Leg::RearRight][1].q - (0.9 + 33.5 / 40.0)).abs() < 1e-9);
+        assert_eq!(out[Leg::RearRight][1].tau, 0.0);
         assert!(log
             .iter()
             .any(|i| matches!(i, Intervention::PositionClamped { joint: 1, .. })));
         assert!(log
             .iter()
             .any(|i| matches!(i, Intervention::TorqueClamped { .. })));
-        let (out, _) = s.filter(3.0, &stand(0.9, f64::NAN));
-        assert_eq!(out[Leg::FrontRight][0].tau, 0.0);
+        // Near the target a large feed-forward torque is cut to the limit.
+        let (out, _) = s.filter(3.0, &stand(0.9, 50.0));
+        assert!((out[Leg::FrontLeft][1].tau - 33.5).abs() < 1e-9);
+        // A NaN anywhere: damping.
+        let (out, log) = s.filter(3.0, &stand(0.9, f64::NAN));
+        assert_eq!(out, damping(3.0));
+        assert_eq!(log, vec![Intervention::NonFinite]);
+        let mut cmd = stand(0.9, 0.0);
+        cmd[Leg::RearLeft][2].kp = 5000.0;
+        let (out, log) = s.filter(3.0, &cmd);
+        assert_eq!(out[Leg::RearLeft][2].kp, 200.0);
+        assert!(log
+            .iter()
+            .any(|i| matches!(i, Intervention::GainClamped { .. })));
     }
 
     #[test]
