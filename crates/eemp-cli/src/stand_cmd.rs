@@ -36,16 +36,8 @@ pub struct StandArgs {
     /// about a quarter of the run time).
     #[arg(long, default_value_t = 100.0)]
     pub trace_hz: f64,
-    /// What the controller sees: ground-truth (the simulator's state) or kf (the linear Kalman
-    /// filter on the simulated IMU and joint encoders).
-    #[arg(long, default_value = "ground-truth")]
-    pub estimator: String,
-    /// With --estimator kf: noise-free sensors without latency.
-    #[arg(long)]
-    pub ideal_sensors: bool,
-    /// Seed of the sensor noise.
-    #[arg(long, default_value_t = 0)]
-    pub seed: u64,
+    #[command(flatten)]
+    pub sensing: crate::state_source_arg::StateSourceArgs,
     /// Robot description (default: the shipped A1, robots/a1.toml).
     #[arg(long)]
     pub robot: Option<PathBuf>,
@@ -104,12 +96,7 @@ pub fn run(args: &StandArgs) -> Result<(), String> {
     controller
         .validate()
         .map_err(|e| format!("--mpc-period: {e}"))?;
-    let source = crate::state_source_arg::state_source(
-        &args.estimator,
-        args.ideal_sensors,
-        args.seed,
-        &robot,
-    )?;
+    let source = args.sensing.source(&robot)?;
     create_dir(&args.out).map_err(|e| e.to_string())?;
     let header: Vec<String> = [
         "time_s",

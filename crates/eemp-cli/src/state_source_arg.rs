@@ -6,6 +6,28 @@ use eemp_core::robot::RobotConfig;
 use eemp_sim::closed_loop::StateSource;
 use eemp_sim::sensors::SensorNoise;
 
+/// The options, flattened into `eemp walk` and `eemp stand`.
+#[derive(clap::Args, Debug)]
+pub struct StateSourceArgs {
+    /// What the controller sees: ground-truth (the simulator's state) or kf (the linear Kalman
+    /// filter on the simulated IMU and joint encoders).
+    #[arg(long, default_value = "ground-truth")]
+    pub estimator: String,
+    /// With --estimator kf: noise-free sensors without latency (default: A1-like noise, see
+    /// `eemp_sim::sensors::SensorNoise`).
+    #[arg(long)]
+    pub ideal_sensors: bool,
+    /// Seed of the sensor noise (and, for walks, of the start perturbation; 0: start at rest).
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+}
+
+impl StateSourceArgs {
+    pub fn source(&self, robot: &RobotConfig) -> Result<StateSource, String> {
+        state_source(&self.estimator, self.ideal_sensors, self.seed, robot)
+    }
+}
+
 /// `ground-truth` or `kf` (with A1-like sensor noise unless `ideal_sensors`).
 pub fn state_source(
     name: &str,

@@ -23,17 +23,8 @@ pub struct WalkArgs {
     /// Policy file for a learned --controller (e.g. policies/a1_model_free.safetensors).
     #[arg(long)]
     pub policy: Option<PathBuf>,
-    /// What the controller sees: ground-truth (the simulator's state) or kf (the linear Kalman
-    /// filter on the simulated IMU and joint encoders).
-    #[arg(long, default_value = "ground-truth")]
-    pub estimator: String,
-    /// With --estimator kf: noise-free sensors without latency (default: A1-like noise, see
-    /// `eemp_sim::sensors::SensorNoise`).
-    #[arg(long)]
-    pub ideal_sensors: bool,
-    /// Seed of the sensor noise and of the start perturbation (0: start exactly at rest).
-    #[arg(long, default_value_t = 0)]
-    pub seed: u64,
+    #[command(flatten)]
+    pub sensing: crate::state_source_arg::StateSourceArgs,
     /// trot, walk or free (no predetermined order). EEMP only.
     #[arg(long, default_value = "trot")]
     pub gait: String,
@@ -194,13 +185,8 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
     if let Some(mu) = args.mpc_friction {
         spec.controller.mpc.friction_coefficient = mu;
     }
-    spec.seed = args.seed;
-    spec.state_source = crate::state_source_arg::state_source(
-        &args.estimator,
-        args.ideal_sensors,
-        args.seed,
-        &robot,
-    )?;
+    spec.seed = args.sensing.seed;
+    spec.state_source = args.sensing.source(&robot)?;
     spec.floor_friction = args.friction;
     let scenario = match &args.scenario {
         Some(p) => Some(eemp_sim::scenario::Scenario::load(p).map_err(|e| e.to_string())?),

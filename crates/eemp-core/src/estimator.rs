@@ -101,19 +101,6 @@ impl KfConfig {
     }
 }
 
-/// Cheetah's trust window: ramps 0 → 1 over the first `window` of stance and 1 → 0 over the
-/// last (`phase` 0…1 through stance; a swing leg has trust 0).
-pub fn stance_trust(phase: f64, window: f64) -> f64 {
-    let p = phase.clamp(0.0, 1.0);
-    if p < window {
-        p / window
-    } else if p > 1.0 - window {
-        (1.0 - p) / window
-    } else {
-        1.0
-    }
-}
-
 /// One scalar measurement: x[plus] − x[minus] = y with variance `var`.
 #[derive(Clone, Copy, Debug)]
 struct Row {
@@ -452,15 +439,6 @@ mod tests {
         b.correct_batch(&rows);
         assert!((a.x - b.x).amax() < 1e-9, "{}", (a.x - b.x).amax());
         assert!((a.p - b.p).amax() < 1e-9, "{}", (a.p - b.p).amax());
-    }
-
-    #[test]
-    fn the_trust_window_ramps_in_and_out_of_stance() {
-        assert_eq!(stance_trust(0.0, 0.2), 0.0);
-        assert!((stance_trust(0.1, 0.2) - 0.5).abs() < 1e-12);
-        assert_eq!(stance_trust(0.5, 0.2), 1.0);
-        assert!((stance_trust(0.95, 0.2) - 0.25).abs() < 1e-12);
-        assert_eq!(stance_trust(1.5, 0.2), 0.0);
     }
 
     #[test]

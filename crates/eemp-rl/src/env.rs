@@ -159,10 +159,6 @@ impl<E: Env> VecEnv<E> {
         self.slots.iter().map(|s| &s.env)
     }
 
-    pub fn envs_mut(&mut self) -> impl Iterator<Item = &mut E> {
-        self.slots.iter_mut().map(|s| &mut s.env)
-    }
-
     /// The RNG states (for checkpoints) and their restoration.
     pub fn rngs(&self) -> Vec<ChaCha8Rng> {
         self.slots.iter().map(|s| s.rng.clone()).collect()

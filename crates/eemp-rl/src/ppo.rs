@@ -38,24 +38,6 @@ impl Rollout {
             ..Default::default()
         }
     }
-
-    pub fn len(&self) -> usize {
-        self.values.len()
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.values.is_empty()
-    }
-
-    pub fn clear(&mut self) {
-        self.obs.clear();
-        self.actions.clear();
-        self.log_probs.clear();
-        self.means.clear();
-        self.values.clear();
-        self.rewards.clear();
-        self.dones.clear();
-    }
 }
 
 /// GAE(γ, λ): advantages and returns (advantage + value) for a time-major rollout, bootstrapped

@@ -337,3 +337,47 @@ fn a_config_out_of_range_names_the_key() {
     std::fs::write(&p, "num_envs = \"many\"\n").unwrap();
     assert!(TrainConfig::load(&p).is_err());
 }
+
+#[test]
+fn the_ppo_loss_equals_a_hand_computed_value_with_both_clips_active() {
+    use candle_core::{Device, Tensor};
+    let net = NetworkConfig {
+        actor_hidden: vec![4],
+        critic_hidden: vec![3],
+        activation: Activation::Tanh,
+    };
+    let mut rng = ChaCha8Rng::seed_from_u64(2);
+    let ac = ActorCritic::new(3, 2, &net, 0.7, &mut rng).unwrap();
+    let dev = Device::Cpu;
+    let obs = Tensor::new(&[[0.3f32, -0.2, 0.5]], &dev).unwrap();
+    let actions = Tensor::new(&[[0.1f32, -0.4]], &dev).unwrap();
+    let lp = ac.log_prob(&ac.mean(&obs).unwrap(), &actions).unwrap();
+    let v: f32 = ac.value(&obs).unwrap().to_vec1::<f32>().unwrap()[0];
+    // Ratio 1.5 with advantage 2: the clipped surrogate takes 1.2 · 2 (ε = 0.2).
+    let old_lp = (lp - 1.5f64.ln()).unwrap();
+    // V moved 0.5 from V_old: the clipped value V_old + 0.2 is further from the return V + 1,
+    // so the value loss is (0.5 − 0.2 + 1)² = 1.69.
+    let mb = Minibatch {
+        obs,
+        actions,
+        old_log_probs: old_lp,
+        old_values: Tensor::new(&[v - 0.5], &dev).unwrap(),
+        returns: Tensor::new(&[v + 1.0], &dev).unwrap(),
+        advantages: Tensor::new(&[2.0f32], &dev).unwrap(),
+    };
+    let cfg = PpoConfig {
+        value_coef: 0.5,
+        entropy_coef: 0.1,
+        ..Default::default()
+    };
+    let loss = ppo_loss(&ac, &mb, &cfg).unwrap();
+    let entropy =
+        2.0 * (0.7f64.ln() + 0.5 * (2.0 * std::f64::consts::PI * std::f64::consts::E).ln());
+    let expected = -1.2 * 2.0 + 0.5 * 1.69 - 0.1 * entropy;
+    let got = loss.total.to_scalar::<f32>().unwrap() as f64;
+    assert!(
+        (got - expected).abs() < 1e-4,
+        "loss {got}, by hand {expected}"
+    );
+    assert!((loss.value.to_scalar::<f32>().unwrap() as f64 - 1.69).abs() < 1e-4);
+}

@@ -429,17 +429,13 @@ impl ClosedLoop {
         stats.stages.observer_s += (t4 - t3).as_secs_f64();
         stats.steps += 1;
         stats.sim_time_s = stats.steps as f64 * self.sim.timestep_s();
-        stats.wall_time_s = self.wall_start.elapsed().as_secs_f64();
+        stats.wall_time_s = (t5 - self.wall_start).as_secs_f64();
         let fell = self.limits.fallen(&truth);
         if fell && !stats.fell {
             stats.fell = true;
             stats.fell_at_s = Some(truth.time_s - t_start);
         }
         StepOutcome { fell }
-    }
-
-    pub fn into_parts(self) -> (Simulation, LoopStats) {
-        (self.sim, self.stats)
     }
 }
 

@@ -263,13 +263,18 @@ impl StartPose {
 
     /// Standing in the joint pose `joints` with the feet on flat ground.
     pub fn from_joints(robot: &RobotConfig, joints: LegMap<Vector3<f64>>) -> Self {
-        let kin = LegKinematics::new(robot);
+        Self::standing(&LegKinematics::new(robot), robot.leg.foot_radius_m, joints)
+    }
+
+    /// [`StartPose::from_joints`] with the kinematics at hand: the trunk height that puts the
+    /// lowest foot on the floor.
+    pub fn standing(kin: &LegKinematics, foot_radius_m: f64, joints: LegMap<Vector3<f64>>) -> Self {
         let lowest = Leg::ALL
             .iter()
             .map(|l| kin.foot_position_body(*l, &joints[*l]).z)
             .fold(f64::INFINITY, f64::min);
         StartPose {
-            trunk_height_m: -lowest + robot.leg.foot_radius_m,
+            trunk_height_m: -lowest + foot_radius_m,
             joints,
         }
     }

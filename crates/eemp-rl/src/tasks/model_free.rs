@@ -19,6 +19,7 @@ use eemp_core::robot::RobotConfig;
 use eemp_sim::backend::{build_model, SimSnapshot};
 use eemp_sim::closed_loop::{ClosedLoop, FallLimits};
 use eemp_sim::mjcf::SceneExtras;
+use eemp_sim::walk::StartPose;
 use eemp_sim::Simulation;
 use mujoco_rs::prelude::MjModel;
 use nalgebra::{UnitQuaternion, Vector3};
@@ -689,13 +690,12 @@ impl Env for ModelFreeEnv {
                 }
             })
         });
-        let lowest = Leg::ALL
-            .iter()
-            .map(|l| self.kin.foot_position_body(*l, &joints[*l]).z)
-            .fold(f64::INFINITY, f64::min);
-        let height = -lowest + self.foot_radius_m;
+        let start = StartPose::standing(&self.kin, self.foot_radius_m, joints);
         let sim = self.loop_.sim_mut();
-        sim.reset(Vector3::new(0.0, 0.0, height + 0.005), &joints);
+        sim.reset(
+            Vector3::new(0.0, 0.0, start.trunk_height_m + 0.005),
+            &start.joints,
+        );
         let vn = self.config.reset_vel_noise_mps;
         if vn > 0.0 {
             let yaw: f64 = rng.random_range(-std::f64::consts::PI..std::f64::consts::PI);
