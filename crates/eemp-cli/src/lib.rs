@@ -2,8 +2,10 @@
 pub mod bench;
 pub mod bench_estimator;
 pub mod bench_rl;
+pub mod hw_cmd;
 pub mod output;
 pub mod plots;
+pub mod retarget_cmd;
 pub mod stand_cmd;
 pub mod state_source_arg;
 pub mod sweep_cmd;

@@ -1,7 +1,7 @@
 //! `eemp`: the energy-efficient motion planner on a simulated Unitree A1.
 
 use clap::{Parser, Subcommand};
-use eemp_cli::{stand_cmd, sweep_cmd, train_cmd, walk_cmd};
+use eemp_cli::{hw_cmd, retarget_cmd, stand_cmd, sweep_cmd, train_cmd, walk_cmd};
 
 #[derive(Parser)]
 #[command(
@@ -25,6 +25,12 @@ enum Command {
     Sweep(sweep_cmd::SweepArgs),
     /// Train a learned controller with PPO (resumable); policy, log and curves in --out.
     Train(train_cmd::TrainArgs),
+    /// Retarget a raw dog motion-capture clip to an A1 reference motion (imitation baseline).
+    Retarget(retarget_cmd::RetargetArgs),
+    /// Run a controller on an A1 over its low-level UDP protocol, behind the safety layer.
+    Hw(Box<hw_cmd::HwArgs>),
+    /// A MuJoCo A1 that speaks the A1's low-level protocol on UDP (for `eemp hw`).
+    SimRobot(hw_cmd::SimRobotArgs),
     /// Benchmarks.
     Bench {
         #[command(subcommand)]
@@ -78,6 +84,9 @@ fn main() {
         Command::Walk(args) => walk_cmd::run(&args),
         Command::Sweep(args) => sweep_cmd::run(&args),
         Command::Train(args) => train_cmd::run(&args),
+        Command::Retarget(args) => retarget_cmd::run(&args),
+        Command::Hw(args) => hw_cmd::run_hw_cmd(&args),
+        Command::SimRobot(args) => hw_cmd::run_sim_robot_cmd(&args),
         Command::Bench {
             what: BenchCommand::Mpc { solves },
         } => {

@@ -832,3 +832,79 @@ mod tests {
         assert_eq!(wrap("", 2), [""]);
     }
 }
+
+/// One frame of [`stick_figures`]: polylines of two figures in a side view.
+#[derive(Debug, Clone, Default)]
+pub struct StickFrame {
+    pub title: String,
+    pub a: Vec<Vec<(f64, f64)>>,
+    pub b: Vec<Vec<(f64, f64)>>,
+}
+
+/// Stick figures of two bodies (e.g. the dog's markers and the robot's links) frame by frame,
+/// side by side, with equal axis scales in every frame.
+pub fn stick_figures(
+    path: &Path,
+    title: &str,
+    (x_label, y_label): (&str, &str),
+    (label_a, label_b): (&str, &str),
+    frames: &[StickFrame],
+) -> Result<(), PlotError> {
+    let cols = frames.len().clamp(1, 4);
+    let rows = frames.len().div_ceil(cols).max(1);
+    let cell = 300u32;
+    let width = cell * cols as u32 + LEGEND_W;
+    render(path, (width, TITLE_H + cell * rows as u32), |root| {
+        let body = root.titled(title, title_style())?;
+        let (grid, legend) = body.split_horizontally(width - LEGEND_W);
+        let span = frames
+            .iter()
+            .flat_map(|f| f.a.iter().chain(&f.b).flatten())
+            .fold(
+                (
+                    f64::INFINITY,
+                    f64::NEG_INFINITY,
+                    f64::INFINITY,
+                    f64::NEG_INFINITY,
+                ),
+                |s, p| (s.0.min(p.0), s.1.max(p.0), s.2.min(p.1), s.3.max(p.1)),
+            );
+        let half = ((span.1 - span.0).max(span.3 - span.2) / 2.0).max(0.05) * 1.1;
+        for (f, area) in frames.iter().zip(grid.split_evenly((rows, cols))) {
+            let pts = f.a.iter().chain(&f.b).flatten();
+            let n = pts.clone().count().max(1) as f64;
+            let cx = pts.clone().map(|p| p.0).sum::<f64>() / n;
+            let cy = (span.2 + span.3) / 2.0;
+            let mut chart = ChartBuilder::on(&area)
+                .caption(&f.title, (FONT, 15))
+                .margin(6)
+                .x_label_area_size(36)
+                .y_label_area_size(50)
+                .build_cartesian_2d(cx - half..cx + half, cy - half..cy + half)?;
+            chart
+                .configure_mesh()
+                .x_desc(x_label)
+                .y_desc(y_label)
+                .x_labels(4)
+                .y_labels(4)
+                .label_style((FONT, 12))
+                .axis_desc_style((FONT, 13))
+                .draw()?;
+            let col_a = RGBColor(255, 127, 14);
+            for line in &f.a {
+                chart.draw_series(LineSeries::new(line.clone(), col_a.stroke_width(2)))?;
+            }
+            for line in &f.b {
+                chart.draw_series(LineSeries::new(line.clone(), STANCE.stroke_width(3)))?;
+            }
+        }
+        draw_legend(
+            &legend,
+            &[
+                (label_a.to_string(), Swatch::Line(RGBColor(255, 127, 14))),
+                (label_b.to_string(), Swatch::Line(STANCE)),
+            ],
+            45,
+        )
+    })
+}

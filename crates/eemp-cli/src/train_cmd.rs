@@ -10,7 +10,8 @@ use std::path::{Path, PathBuf};
 
 #[derive(clap::Args, Debug)]
 pub struct TrainArgs {
-    /// model-free (the paper's RL baseline) or cart-pole (PPO's test task).
+    /// model-free (the paper's RL baseline), imitation (its motion-imitation baseline) or
+    /// cart-pole (PPO's test task).
     #[arg(long)]
     pub task: String,
     /// Training config (TOML; every key optional, defaults in `eemp_rl::config`). Its `task`
@@ -30,6 +31,10 @@ pub struct TrainArgs {
     /// Override the config's total environment steps (e.g. a smoke run).
     #[arg(long)]
     pub env_steps: Option<u64>,
+    /// Reference motion for --task imitation (a file of `eemp retarget`; overrides the
+    /// config's imitation.motion_file).
+    #[arg(long)]
+    pub motion: Option<PathBuf>,
     /// Robot description (default: the shipped A1).
     #[arg(long)]
     pub robot: Option<PathBuf>,
@@ -54,6 +59,15 @@ pub fn run(args: &TrainArgs) -> Result<(), String> {
                 .unwrap_or_default(),
             config.task.name()
         ));
+    }
+    if let Some(m) = &args.motion {
+        if task != TaskKind::Imitation {
+            return Err(format!(
+                "--motion is for --task imitation, not {}",
+                task.name()
+            ));
+        }
+        config.imitation.motion_file = m.display().to_string();
     }
     if let Some(n) = args.env_steps {
         if n == 0 {

@@ -103,7 +103,8 @@ pub struct WalkArgs {
 /// Which controller a walk runs.
 enum Driver {
     Eemp,
-    ModelFree(Box<eemp_rl::policy::Policy>),
+    /// A trained policy (model-free or imitation).
+    Policy(Box<eemp_rl::policy::Policy>),
 }
 
 pub fn run(args: &WalkArgs) -> Result<(), String> {
@@ -111,19 +112,22 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
     let driver = match (args.controller.as_str(), &args.policy) {
         ("eemp", None) => Driver::Eemp,
         ("eemp", Some(_)) => {
-            return Err("--policy is for a learned --controller (model-free), not eemp".into())
+            return Err(
+                "--policy is for a learned --controller (model-free, imitation), not eemp".into(),
+            )
         }
-        ("model-free", Some(p)) => Driver::ModelFree(Box::new(eemp_rl::policy::Policy::load(
-            p,
-            Some(eemp_rl::config::TaskKind::ModelFree),
-        )?)),
-        ("model-free", None) => return Err(
-            "--controller model-free needs --policy FILE (e.g. policies/a1_model_free.safetensors)"
-                .into(),
-        ),
+        (c @ ("model-free" | "imitation"), Some(p)) => Driver::Policy(Box::new(
+            eemp_rl::policy::Policy::load(p, Some(c.parse()?))?,
+        )),
+        (c @ ("model-free" | "imitation"), None) => {
+            return Err(format!(
+                "--controller {c} needs --policy FILE (e.g. policies/a1_{}.safetensors)",
+                c.replace('-', "_")
+            ))
+        }
         (other, _) => {
             return Err(format!(
-                "unknown --controller '{other}': allowed eemp, model-free"
+                "unknown --controller '{other}': allowed eemp, model-free, imitation"
             ))
         }
     };
@@ -327,7 +331,11 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
             run_walk(&robot, &spec, observer).map_err(|e| e.to_string())?,
             format!("EEMP ({gait})"),
         ),
-        Driver::ModelFree(policy) => {
+        Driver::Policy(policy) => {
+            let label = match policy.config.task {
+                eemp_rl::config::TaskKind::Imitation => "motion imitation",
+                _ => "model-free RL",
+            };
             let mut c = eemp_rl::controller::PolicyController::new(
                 *policy,
                 &robot,
@@ -342,7 +350,7 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
                     c.invalid_steps
                 );
             }
-            (run, "model-free RL".to_string())
+            (run, label.to_string())
         }
     };
     if let Some(e) = write_error {

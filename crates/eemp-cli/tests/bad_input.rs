@@ -179,3 +179,141 @@ fn bad_training_and_policy_input_exits_2_names_the_file_and_writes_nothing() {
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn bad_clips_and_motions_exit_2_name_the_file_frame_and_marker_and_write_nothing() {
+    let dir = scratch("retarget");
+    let good_line = vec!["0.1"; 81].join(",");
+    let wide = dir.join("wide_joint_pos.txt");
+    std::fs::write(&wide, format!("{good_line}\n{good_line},0.2\n")).unwrap();
+    let malformed = dir.join("malformed_joint_pos.txt");
+    let mut cells = vec!["0.1"; 81];
+    cells[31] = "x1";
+    std::fs::write(&malformed, format!("{good_line}\n{}\n", cells.join(","))).unwrap();
+    let degenerate = dir.join("degenerate_joint_pos.txt");
+    std::fs::write(&degenerate, vec![good_line.clone(); 5].join("\n")).unwrap();
+    let truncated = dir.join("truncated_joint_pos.txt");
+    std::fs::write(&truncated, format!("{good_line}\n0.1,0.2,0.3\n")).unwrap();
+    let real = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/reference/dog_mocap/raw_keypoints/dog_walk00_joint_pos.txt");
+    let paths =
+        [&wide, &malformed, &truncated, &degenerate].map(|p| p.to_str().unwrap().to_string());
+    let real = real.to_str().unwrap();
+    let cases: [(Vec<&str>, Vec<&str>); 7] = [
+        (
+            vec!["retarget", "--clip", &paths[0]],
+            vec!["wide_joint_pos.txt", "frame 1", "82 values"],
+        ),
+        (
+            vec!["retarget", "--clip", &paths[1]],
+            vec!["malformed_joint_pos.txt", "frame 1", "marker 10", "x1"],
+        ),
+        (
+            vec!["retarget", "--clip", &paths[2]],
+            vec!["truncated_joint_pos.txt", "frame 1", "3 values"],
+        ),
+        (
+            vec!["retarget", "--clip", real, "--frames", "200..200"],
+            vec!["--frames 200..200", "empty"],
+        ),
+        (
+            vec!["retarget", "--clip", real, "--frames", "500..700"],
+            vec!["dog_walk00_joint_pos.txt", "500..700", "593 frames"],
+        ),
+        (
+            // All markers at one point: no heading to take from them.
+            vec!["retarget", "--clip", &paths[3]],
+            vec!["degenerate_joint_pos.txt", "frame 0", "markers 0 and 3"],
+        ),
+        (
+            vec!["retarget", "--clip", "no_such_clip"],
+            vec!["no_such_clip_joint_pos.txt"],
+        ),
+    ];
+    for (args, want) in cases {
+        let (code, err, wrote) = eemp(&dir, &args);
+        assert_eq!(code, Some(2), "{args:?}: {err}");
+        for w in want {
+            assert!(err.contains(w), "{args:?}: '{err}' lacks '{w}'");
+        }
+        assert!(!wrote, "{args:?} wrote its output");
+    }
+    // The IK cannot follow: a clip whose toes are stretched 30 cm below the paws.
+    let text = std::fs::read_to_string(real).unwrap();
+    let stretched: Vec<String> = text
+        .lines()
+        .take(20)
+        .map(|l| {
+            let mut v: Vec<f64> = l.split(',').map(|c| c.trim().parse().unwrap()).collect();
+            for toe in [10, 19, 15, 23] {
+                v[3 * toe + 1] -= 0.3; // y is up in the capture
+            }
+            v.iter()
+                .map(|x| format!("{x:.5}"))
+                .collect::<Vec<_>>()
+                .join(",")
+        })
+        .collect();
+    let far = dir.join("far_joint_pos.txt");
+    std::fs::write(&far, stretched.join("\n")).unwrap();
+    let (code, err, wrote) = eemp(&dir, &["retarget", "--clip", far.to_str().unwrap()]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(
+        err.contains("far_joint_pos.txt") && err.contains("frame 0"),
+        "{err}"
+    );
+    assert!(err.contains("toe marker"), "{err}");
+    assert!(!wrote);
+    // A policy for another task cannot drive an imitation walk.
+    let (code, err, _) = eemp(
+        &dir,
+        &[
+            "walk",
+            "--controller",
+            "imitation",
+            "--policy",
+            Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("../../policies/a1_model_free.safetensors")
+                .to_str()
+                .unwrap(),
+        ],
+    );
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("not imitation"), "{err}");
+}
+
+#[test]
+fn bad_hardware_input_exits_2_names_the_value_and_writes_nothing() {
+    let dir = scratch("hw");
+    let cases: [(&[&str], &[&str]); 6] = [
+        (
+            &["hw", "--dry-run", "--speed", "9"],
+            &["--speed 9", "[-1.5, 1.5]"],
+        ),
+        (
+            &["hw", "--dry-run", "--rate", "5"],
+            &["rate 5 Hz", "[50, 2000]"],
+        ),
+        (
+            &["hw", "--robot", "127.0.0.1:9", "--drop", "1.5"],
+            &["drop_prob = 1.5", "[0, 1]"],
+        ),
+        (&["hw", "--speed", "0.3"], &["--robot"]),
+        (
+            &["hw", "--dry-run", "--controller", "imitation"],
+            &["--policy"],
+        ),
+        (
+            &["sim-robot", "--duration", "0"],
+            &["--duration 0", "(0, 3600]"],
+        ),
+    ];
+    for (args, want) in cases {
+        let (code, err, wrote) = eemp(&dir, args);
+        assert_eq!(code, Some(2), "{args:?}: {err}");
+        for w in want {
+            assert!(err.contains(w), "{args:?}: '{err}' lacks '{w}'");
+        }
+        assert!(!wrote, "{args:?} wrote its output");
+    }
+}

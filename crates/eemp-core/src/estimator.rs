@@ -12,6 +12,7 @@
 
 use crate::body_state::{BodyState, LegJointState, RobotState};
 use crate::config_error::{check_range, ConfigError};
+use crate::controller::Plan;
 use crate::kinematics::LegKinematics;
 use crate::leg::{Leg, LegMap};
 use nalgebra::{SMatrix, SVector, UnitQuaternion, Vector3};
@@ -26,6 +27,68 @@ pub struct ImuReading {
     pub gyro_body: Vector3<f64>,
     /// Specific force (acceleration minus gravity), m/s²: (0, 0, 9.81) at rest.
     pub accel_body: Vector3<f64>,
+}
+
+/// Time over which a leg's trust ramps from 0 to 1 after it enters stance, s (Cheetah's 0.2
+/// of a 0.15–0.25 s stance).
+pub const TRUST_RAMP_S: f64 = 0.04;
+
+/// Foot force on the ground implied by a leg's joint torques, assuming the leg is static:
+/// τ = −Jᵀ Rᵀ f ⇒ f = −R J⁻ᵀ τ (world frame, N); `None` near a singular leg.
+pub fn foot_force_from_torque(
+    jacobian_body: &nalgebra::Matrix3<f64>,
+    r_world_body: &UnitQuaternion<f64>,
+    tau: &Vector3<f64>,
+) -> Option<Vector3<f64>> {
+    let jt_inv = jacobian_body.transpose().try_inverse()?;
+    Some(-(r_world_body * (jt_inv * tau)))
+}
+
+/// Each leg's trust as a stance leg, for the filter: from the controller's plan (ramped over
+/// [`TRUST_RAMP_S`] after touchdown) or, for a controller without a plan, from the vertical
+/// load its last torques imply (10 N → 0, 30 N → 1). Never from a simulator's contact list:
+/// the same code runs on the robot.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ContactTrust {
+    /// When each leg entered stance, s.
+    stance_since: LegMap<Option<f64>>,
+}
+
+impl ContactTrust {
+    /// All legs in stance since `t_s` (episodes start standing).
+    pub fn new(t_s: f64) -> Self {
+        ContactTrust {
+            stance_since: LegMap::splat(Some(t_s)),
+        }
+    }
+
+    /// `state` needs the sensed joints and attitude only.
+    pub fn update(
+        &mut self,
+        plan: Option<&Plan>,
+        kin: &LegKinematics,
+        state: &RobotState,
+        last_torques: &LegMap<Vector3<f64>>,
+    ) -> LegMap<f64> {
+        let t = state.time_s;
+        match plan {
+            Some(plan) => LegMap::from_fn(|leg| {
+                if plan.stance[leg] {
+                    let since = *self.stance_since[leg].get_or_insert(t);
+                    ((t - since) / TRUST_RAMP_S).clamp(0.0, 1.0)
+                } else {
+                    self.stance_since[leg] = None;
+                    0.0
+                }
+            }),
+            None => LegMap::from_fn(|leg| {
+                let j = kin.foot_jacobian_body(leg, &state.joints[leg].q);
+                foot_force_from_torque(&j, &state.body.r_world_body, &last_torques[leg])
+                    .map(|f| ((f.z - 10.0) / 20.0).clamp(0.0, 1.0))
+                    .unwrap_or(0.0)
+            }),
+        }
+    }
 }
 
 /// What the estimator reads each step besides the IMU.

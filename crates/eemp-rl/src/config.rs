@@ -1,6 +1,7 @@
 //! Training configuration: one TOML file, every field with a default, a unit and a range.
 
 use crate::tasks::cartpole::CartPoleConfig;
+use crate::tasks::imitation::ImitationConfig;
 use crate::tasks::model_free::ModelFreeConfig;
 use eemp_core::config_error::{check_range, ConfigError};
 use serde::{Deserialize, Serialize};
@@ -11,6 +12,8 @@ use serde::{Deserialize, Serialize};
 pub enum TaskKind {
     /// The paper's model-free RL baseline (Sec. II-C): joint targets from proprioception.
     ModelFree,
+    /// The paper's motion-imitation baseline: joint targets about a retargeted dog gait.
+    Imitation,
     /// A MuJoCo cart-pole the project builds: PPO's own test task.
     CartPole,
 }
@@ -19,6 +22,7 @@ impl TaskKind {
     pub fn name(self) -> &'static str {
         match self {
             TaskKind::ModelFree => "model-free",
+            TaskKind::Imitation => "imitation",
             TaskKind::CartPole => "cart-pole",
         }
     }
@@ -29,9 +33,10 @@ impl std::str::FromStr for TaskKind {
     fn from_str(s: &str) -> Result<Self, String> {
         match s {
             "model-free" => Ok(TaskKind::ModelFree),
+            "imitation" => Ok(TaskKind::Imitation),
             "cart-pole" => Ok(TaskKind::CartPole),
             other => Err(format!(
-                "unknown task '{other}': allowed model-free, cart-pole"
+                "unknown task '{other}': allowed model-free, imitation, cart-pole"
             )),
         }
     }
@@ -178,6 +183,7 @@ pub struct TrainConfig {
     pub ppo: PpoConfig,
     pub network: NetworkConfig,
     pub model_free: ModelFreeConfig,
+    pub imitation: ImitationConfig,
     pub cart_pole: CartPoleConfig,
 }
 
@@ -193,6 +199,7 @@ impl Default for TrainConfig {
             ppo: PpoConfig::default(),
             network: NetworkConfig::default(),
             model_free: ModelFreeConfig::default(),
+            imitation: ImitationConfig::default(),
             cart_pole: CartPoleConfig::default(),
         }
     }
@@ -218,6 +225,7 @@ impl TrainConfig {
         self.network.validate()?;
         match self.task {
             TaskKind::ModelFree => self.model_free.validate(),
+            TaskKind::Imitation => self.imitation.validate(),
             TaskKind::CartPole => self.cart_pole.validate(),
         }
     }

@@ -1,7 +1,8 @@
 //! Learned controllers for the A1 on the project's one closed loop.
 //!
 //! - [`env`]: the environment interface and N environments stepped on a worker pool.
-//! - [`tasks`]: the model-free baseline ([`tasks::model_free`]) and a cart-pole test task.
+//! - [`tasks`]: the model-free baseline ([`tasks::model_free`]), the motion-imitation baseline
+//!   ([`tasks::imitation`], on the retargeted dog motions of [`imitation`]) and a cart-pole test task.
 //! - [`nn`], [`adam`], [`ppo`], [`normalizer`]: networks on candle, Adam with open state,
 //!   the PPO update, running observation normalisation.
 //! - [`train`]: the training loop with `train.csv`, checkpoints and resume.
@@ -14,6 +15,7 @@ pub mod adam;
 pub mod config;
 pub mod controller;
 pub mod env;
+pub mod imitation;
 pub mod nn;
 pub mod normalizer;
 pub mod policy;

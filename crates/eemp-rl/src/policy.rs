@@ -16,6 +16,8 @@ pub struct Policy {
     pub config: TrainConfig,
     pub net: ActorCritic,
     pub normalizer: ObsNormalizer,
+    /// The reference motion file's text (imitation policies carry the motion they follow).
+    pub motion: Option<String>,
 }
 
 /// Observation and action sizes of a config's task.
@@ -25,6 +27,7 @@ pub fn task_dims(config: &TrainConfig) -> (usize, usize) {
             config.model_free.obs_dim(),
             crate::tasks::model_free::ACT_DIM,
         ),
+        TaskKind::Imitation => (config.imitation.obs_dim(), crate::tasks::imitation::ACT_DIM),
         TaskKind::CartPole => (4, 1),
     }
 }
@@ -77,6 +80,7 @@ impl Policy {
             config: config.clone(),
             net,
             normalizer: ObsNormalizer::new(obs_dim),
+            motion: None,
         })
     }
 
@@ -99,6 +103,9 @@ impl Policy {
             "obs_normalizer".into(),
             normalizer_to_json(&self.normalizer),
         );
+        if let Some(m) = &self.motion {
+            f.metadata.insert("motion".into(), m.clone());
+        }
         Ok(f)
     }
 
@@ -166,6 +173,9 @@ impl Policy {
         }
         policy.normalizer = normalizer_from_json(f.meta(path, "obs_normalizer")?)
             .map_err(|e| format!("{}: {e}", path.display()))?;
+        if task == TaskKind::Imitation {
+            policy.motion = Some(f.meta(path, "motion")?.to_string());
+        }
         if policy.normalizer.dim() != o {
             return Err(format!(
                 "{}: normaliser has {} dims, the task {o}",

@@ -9,10 +9,12 @@
 use crate::adam::Adam;
 use crate::config::{TaskKind, TrainConfig};
 use crate::env::{Env, VecEnv};
+use crate::imitation::motion::ReferenceMotion;
 use crate::nn::gaussian_log_prob;
 use crate::policy::{normalizer_from_json, normalizer_to_json, Policy};
 use crate::ppo::{update, Rollout, UpdateStats};
 use crate::tasks::cartpole::{cartpole_model, CartPole};
+use crate::tasks::imitation::ImitationEnv;
 use crate::tasks::model_free::{training_model, ModelFreeEnv};
 use crate::tensor_file::TensorFile;
 use candle_core::{Device, Tensor};
@@ -106,7 +108,20 @@ struct CheckpointState {
 /// The environments of a config's task.
 pub enum AnyVecEnv {
     ModelFree(VecEnv<ModelFreeEnv>),
+    /// With the reference motion file's text (stored in the policy).
+    Imitation(VecEnv<ImitationEnv>, String),
     CartPole(VecEnv<CartPole>),
+}
+
+/// Reads and checks an imitation task's reference motion: (motion, file text).
+pub fn load_motion(path: &Path, robot: &RobotConfig) -> Result<(ReferenceMotion, String), String> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| format!("cannot read motion file {}: {e}", path.display()))?;
+    let motion = ReferenceMotion::parse(path, &text).map_err(|e| e.to_string())?;
+    motion
+        .check_against(&eemp_core::kinematics::LegKinematics::new(robot), path)
+        .map_err(|e| e.to_string())?;
+    Ok((motion, text))
 }
 
 pub fn make_envs(
@@ -121,6 +136,18 @@ pub fn make_envs(
                 .map(|_| ModelFreeEnv::new(robot, model.clone(), config.model_free.clone()))
                 .collect::<Result<Vec<_>, _>>()?;
             AnyVecEnv::ModelFree(VecEnv::new(envs, config.seed, threads)?)
+        }
+        TaskKind::Imitation => {
+            let c = &config.imitation;
+            let (motion, text) = load_motion(Path::new(&c.motion_file), robot)?;
+            let mut r = robot.clone();
+            r.simulation.timestep_s = c.train_timestep_s;
+            let model = eemp_sim::backend::build_model(&r, &Default::default())
+                .map_err(|e| e.to_string())?;
+            let envs = (0..config.num_envs)
+                .map(|_| ImitationEnv::new(robot, model.clone(), c.clone(), &motion))
+                .collect::<Result<Vec<_>, _>>()?;
+            AnyVecEnv::Imitation(VecEnv::new(envs, config.seed, threads)?, text)
         }
         TaskKind::CartPole => {
             let model = cartpole_model()?;
@@ -141,8 +168,11 @@ pub fn train(
 ) -> Result<Policy, String> {
     config.validate().map_err(|e| e.to_string())?;
     match make_envs(config, robot, opts.threads)? {
-        AnyVecEnv::ModelFree(v) => Trainer::new(config, v, opts)?.run(opts, on_iteration),
-        AnyVecEnv::CartPole(v) => Trainer::new(config, v, opts)?.run(opts, on_iteration),
+        AnyVecEnv::ModelFree(v) => Trainer::new(config, v, None, opts)?.run(opts, on_iteration),
+        AnyVecEnv::Imitation(v, m) => {
+            Trainer::new(config, v, Some(m), opts)?.run(opts, on_iteration)
+        }
+        AnyVecEnv::CartPole(v) => Trainer::new(config, v, None, opts)?.run(opts, on_iteration),
     }
 }
 
@@ -187,8 +217,14 @@ fn checkpoint_dir(out: &Path) -> PathBuf {
 }
 
 impl<E: Env> Trainer<E> {
-    fn new(config: &TrainConfig, envs: VecEnv<E>, opts: &TrainOptions) -> Result<Self, String> {
-        let policy = Policy::new(config)?;
+    fn new(
+        config: &TrainConfig,
+        envs: VecEnv<E>,
+        motion: Option<String>,
+        opts: &TrainOptions,
+    ) -> Result<Self, String> {
+        let mut policy = Policy::new(config)?;
+        policy.motion = motion;
         let adam =
             Adam::new(policy.net.vars(), config.ppo.learning_rate).map_err(|e| e.to_string())?;
         let mut t = Trainer {

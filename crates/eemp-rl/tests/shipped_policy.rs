@@ -1,4 +1,4 @@
-//! The shipped model-free policy walks on the evaluation model (1 ms steps, the robot file's
+//! The shipped model-free and imitation policies walk on the evaluation model (1 ms steps, the robot file's
 //! physics), through the same scenario and metrics code as EEMP.
 
 use eemp_core::planner::{PlannerConfig, PlannerParams, VelocityCommand};
@@ -13,23 +13,26 @@ fn shipped() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../policies/a1_model_free.safetensors")
 }
 
+fn walk_spec(vx_mps: f64, duration_s: f64) -> WalkSpec {
+    WalkSpec::constant(
+        PlannerConfig::default(),
+        PlannerParams::default(),
+        VelocityCommand {
+            vx_mps,
+            ..Default::default()
+        },
+        duration_s,
+    )
+}
+
 #[test]
 fn the_shipped_model_free_policy_walks_5_s_at_0_5_m_per_s() {
     let robot = RobotConfig::a1();
     let policy = Policy::load(&shipped(), Some(TaskKind::ModelFree)).unwrap();
     assert_eq!(policy.config.model_free.train_timestep_s, 0.004);
     let mut c = PolicyController::new(policy, &robot, robot.simulation.timestep_s).unwrap();
-    let spec = WalkSpec::constant(
-        PlannerConfig::default(),
-        PlannerParams::default(),
-        VelocityCommand {
-            vx_mps: 0.5,
-            ..Default::default()
-        },
-        5.0,
-    );
     let start = StartPose::from_joints(&robot, c.default_pose());
-    let run = run_walk_with(&robot, &spec, &start, &mut c, |_| {}).unwrap();
+    let run = run_walk_with(&robot, &walk_spec(0.5, 5.0), &start, &mut c, |_| {}).unwrap();
     assert!(!run.stats.fell, "fell at {:?}", run.stats.fell_at_s);
     let rmse = run.metrics.vel_rmse_mps.unwrap();
     assert!(rmse <= 0.1, "velocity RMSE {rmse} m/s");
@@ -42,5 +45,44 @@ fn the_shipped_model_free_policy_walks_5_s_at_0_5_m_per_s() {
     // in the air. (Which legs step is the policy's own choice: see the README.)
     let touchdowns: usize = run.steps.0.iter().sum();
     assert!(touchdowns >= 15, "touchdowns {:?}", run.steps);
+    assert_eq!(c.invalid_steps, 0);
+}
+
+#[test]
+fn the_shipped_imitation_policy_walks_5_s_at_0_5_m_per_s_in_the_dogs_trot() {
+    let robot = RobotConfig::a1();
+    let path =
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../policies/a1_imitation.safetensors");
+    let policy = Policy::load(&path, Some(TaskKind::Imitation)).unwrap();
+    assert!(policy.motion.is_some());
+    let mut c = PolicyController::new(policy, &robot, robot.simulation.timestep_s).unwrap();
+    let start = StartPose::from_joints(&robot, c.default_pose());
+    // Which diagonal and lateral pairs share their contact state, from the loaded feet.
+    let (mut diagonal, mut lateral, mut n) = (0usize, 0usize, 0usize);
+    let run = run_walk_with(&robot, &walk_spec(0.5, 5.0), &start, &mut c, |r| {
+        if r.state.time_s >= 1.0 {
+            let l = r.loaded;
+            use eemp_core::leg::Leg::*;
+            diagonal += (l[FrontRight] == l[RearLeft] && l[FrontLeft] == l[RearRight]) as usize;
+            lateral += (l[FrontRight] == l[RearRight] && l[FrontLeft] == l[RearLeft]) as usize;
+            n += 1;
+        }
+    })
+    .unwrap();
+    assert!(!run.stats.fell, "fell at {:?}", run.stats.fell_at_s);
+    let rmse = run.metrics.vel_rmse_mps.unwrap();
+    assert!(rmse <= 0.15, "velocity RMSE {rmse} m/s");
+    assert!(
+        run.metrics.distance_m > 1.2,
+        "walked {} m",
+        run.metrics.distance_m
+    );
+    let touchdowns: usize = run.steps.0.iter().sum();
+    assert!(touchdowns >= 15, "touchdowns {:?}", run.steps);
+    // The reference is a trot: diagonal pairs move together more often than lateral ones.
+    assert!(
+        diagonal > lateral,
+        "diagonal {diagonal} lateral {lateral} of {n}"
+    );
     assert_eq!(c.invalid_steps, 0);
 }

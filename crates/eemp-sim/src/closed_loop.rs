@@ -113,20 +113,7 @@ impl EstimationStats {
     }
 }
 
-/// Time over which a leg's trust ramps from 0 to 1 after it enters stance, s (Cheetah's 0.2
-/// of a 0.15–0.25 s stance).
-pub const TRUST_RAMP_S: f64 = 0.04;
-
-/// Foot force on the ground implied by a leg's joint torques, assuming the leg is static:
-/// τ = −Jᵀ Rᵀ f ⇒ f = −R J⁻ᵀ τ (world frame, N); `None` near a singular leg.
-pub fn foot_force_from_torque(
-    jacobian_body: &nalgebra::Matrix3<f64>,
-    r_world_body: &nalgebra::UnitQuaternion<f64>,
-    tau: &Vector3<f64>,
-) -> Option<Vector3<f64>> {
-    let jt_inv = jacobian_body.transpose().try_inverse()?;
-    Some(-(r_world_body * (jt_inv * tau)))
-}
+pub use eemp_core::estimator::{foot_force_from_torque, ContactTrust, TRUST_RAMP_S};
 
 impl StepRecord<'_> {
     /// Legs carrying the robot: the plan's stance set, or the loaded feet without a plan.
@@ -197,8 +184,7 @@ pub struct ClosedLoop {
     loaded: LegMap<bool>,
     estimator: Option<(LinearKf, Sensors)>,
     estimation: EstimationStats,
-    /// When each leg entered stance (for the estimator's trust), s.
-    stance_since: LegMap<Option<f64>>,
+    trust: ContactTrust,
     last_torques: LegMap<Vector3<f64>>,
 }
 
@@ -216,7 +202,7 @@ impl ClosedLoop {
         ClosedLoop {
             estimator: None,
             estimation: EstimationStats::default(),
-            stance_since: LegMap::splat(Some(t_start)),
+            trust: ContactTrust::new(t_start),
             last_torques: LegMap::splat(Vector3::zeros()),
             sim,
             pending: pushes.to_vec(),
@@ -257,32 +243,6 @@ impl ClosedLoop {
         &self.estimation
     }
 
-    /// Each leg's trust as a stance leg: from the plan (ramped over [`TRUST_RAMP_S`] after
-    /// touchdown) or, without a plan, from the load its last torques imply.
-    fn contact_trust(&mut self, controller: &dyn Controller, state: &RobotState) -> LegMap<f64> {
-        let t = state.time_s;
-        match controller.plan() {
-            Some(plan) => LegMap::from_fn(|leg| {
-                if plan.stance[leg] {
-                    let since = *self.stance_since[leg].get_or_insert(t);
-                    ((t - since) / TRUST_RAMP_S).clamp(0.0, 1.0)
-                } else {
-                    self.stance_since[leg] = None;
-                    0.0
-                }
-            }),
-            None => {
-                let kin = self.sim.kinematics();
-                LegMap::from_fn(|leg| {
-                    let j = kin.foot_jacobian_body(leg, &state.joints[leg].q);
-                    foot_force_from_torque(&j, &state.body.r_world_body, &self.last_torques[leg])
-                        .map(|f| ((f.z - 10.0) / 20.0).clamp(0.0, 1.0))
-                        .unwrap_or(0.0)
-                })
-            }
-        }
-    }
-
     /// Starts a new episode on the same simulation (the caller has reset its state).
     pub fn restart(&mut self, pushes: &[Push]) {
         self.pending = pushes.to_vec();
@@ -290,7 +250,7 @@ impl ClosedLoop {
         self.t_start = self.sim.time_s();
         self.wall_start = Instant::now();
         self.loaded = LegMap::splat(true);
-        self.stance_since = LegMap::splat(Some(self.t_start));
+        self.trust = ContactTrust::new(self.t_start);
         self.last_torques = LegMap::splat(Vector3::zeros());
         self.estimation = EstimationStats::default();
         if let Some((kf, sensors)) = self.estimator.as_mut() {
@@ -357,7 +317,12 @@ impl ClosedLoop {
                     },
                     joints: seen.joints,
                 };
-                let trust = self.contact_trust(controller, &sensed);
+                let trust = self.trust.update(
+                    controller.plan(),
+                    self.sim.kinematics(),
+                    &sensed,
+                    &self.last_torques,
+                );
                 let kf = &mut self.estimator.as_mut().expect("checked").0;
                 let est = kf.update(&EstimatorInput {
                     time_s: truth.time_s,

@@ -306,6 +306,17 @@ pub fn run_walk(
     observer: impl FnMut(&StepRecord),
 ) -> Result<WalkRun, ScenarioError> {
     spec.validate()?;
+    let mut controller = eemp_controller(robot, spec)?;
+    let start = StartPose::eemp(robot, spec)?;
+    run_walk_with(robot, spec, &start, &mut controller, observer)
+}
+
+/// EEMP (planner, MPC, swing law) as the spec configures it: its planner and controller
+/// settings, constant parameters or the per-speed table.
+pub fn eemp_controller(
+    robot: &RobotConfig,
+    spec: &WalkSpec,
+) -> Result<EempController, ScenarioError> {
     let kin = LegKinematics::new(robot);
     let planner = EemPlanner::new(
         spec.planner.clone(),
@@ -319,9 +330,7 @@ pub fn run_walk(
         Some(t) => ParamsSource::Table(t.clone()),
         None => ParamsSource::Constant(spec.params),
     };
-    let mut controller = EempController::new(planner, locomotion, params);
-    let start = StartPose::eemp(robot, spec)?;
-    run_walk_with(robot, spec, &start, &mut controller, observer)
+    Ok(EempController::new(planner, locomotion, params))
 }
 
 /// Runs a walk with any controller: the same scenario (start, command profile, pushes,

@@ -3,4 +3,5 @@
 //! out, so the robot computer and the tests use the same code).
 
 pub mod a1_protocol;
+pub mod robot_io;
 pub mod safety;

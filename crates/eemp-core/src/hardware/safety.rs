@@ -3,8 +3,9 @@
 //!
 //! In order, each step: watchdog (no state for `watchdog_s` → damping), e-stop (latched until
 //! [`SafetyLayer::reset`]), power protection (the SDK's PowerProtect: Σ|τ·q̇| over the limit for
-//! more than 5 of the last checks → damping, latched), soft start (targets blended from the pose
-//! at start to the controller's over `soft_start_s`), joint position limits, torque limits.
+//! more than 5 of the last checks → damping, latched), soft start (the motor law blended from a
+//! PD hold of the pose at start to the controller's command over `soft_start_s`, so a pure
+//! torque controller starts from a held pose too), joint position limits, torque limits.
 //! Gains are clamped, and the total torque the motor will apply (τ + K_p(q*−q) + K_d(q̇*−q̇)
 //! at the last measured state) is bounded by the torque limit; a command with a NaN gets damping.
 //! Every intervention is returned to the caller for its log.
@@ -57,6 +58,10 @@ pub struct SafetyConfig {
     pub power_limit_w: f64,
     /// Blend time from the start pose into the controller's targets, s.
     pub soft_start_s: f64,
+    /// Gains of the PD hold of the start pose during the soft start, N·m/rad and N·m·s/rad
+    /// (Kp 40 / Kd 1 hold the A1 standing; see the model-free baseline's gains).
+    pub soft_start_kp: f64,
+    pub soft_start_kd: f64,
     /// Damping of the damping mode, N·m·s/rad.
     pub damping_kd: f64,
     /// Torque limit, N·m (the motor's).
@@ -75,6 +80,8 @@ impl Default for SafetyConfig {
             // PowerProtect(…, 5), as legged_control runs the A1.
             power_limit_w: 500.0,
             soft_start_s: 2.0,
+            soft_start_kp: 40.0,
+            soft_start_kd: 1.0,
             damping_kd: 3.0,
             torque_limit_nm: 33.5,
             joint_margin_rad: 0.02,
@@ -89,6 +96,8 @@ impl SafetyConfig {
         check_range("safety.watchdog_s", self.watchdog_s, 0.001, 1.0)?;
         check_range("safety.power_limit_w", self.power_limit_w, 1.0, 2000.0)?;
         check_range("safety.soft_start_s", self.soft_start_s, 0.0, 30.0)?;
+        check_range("safety.soft_start_kp", self.soft_start_kp, 0.0, self.max_kp)?;
+        check_range("safety.soft_start_kd", self.soft_start_kd, 0.0, self.max_kd)?;
         check_range("safety.damping_kd", self.damping_kd, 0.0, 20.0)?;
         check_range("safety.torque_limit_nm", self.torque_limit_nm, 0.0, 33.5)?;
         check_range("safety.joint_margin_rad", self.joint_margin_rad, 0.0, 0.3)?;
@@ -257,8 +266,22 @@ impl SafetyLayer {
             for j in 0..3 {
                 let o = &mut out[leg][j];
                 if blend < 1.0 {
-                    // From holding the start pose to the controller's command.
-                    o.q = q0[leg][j] + (o.q - q0[leg][j]) * blend;
+                    // (1 − b)·hold + b·command, as one motor law: the gains blend, and the
+                    // targets are the gain-weighted mean (each law is linear in q and q̇).
+                    let (hkp, hkd) = (c.soft_start_kp, c.soft_start_kd);
+                    let kp = (1.0 - blend) * hkp + blend * o.kp;
+                    let kd = (1.0 - blend) * hkd + blend * o.kd;
+                    o.q = if kp > 0.0 {
+                        ((1.0 - blend) * hkp * q0[leg][j] + blend * o.kp * o.q) / kp
+                    } else {
+                        q0[leg][j]
+                    };
+                    o.dq = if kd > 0.0 {
+                        blend * o.kd * o.dq / kd
+                    } else {
+                        0.0
+                    };
+                    (o.kp, o.kd) = (kp, kd);
                     o.tau *= blend;
                 }
                 let (kp, kd) = (o.kp.clamp(0.0, c.max_kp), o.kd.clamp(0.0, c.max_kd));
@@ -396,6 +419,37 @@ mod tests {
         assert!(log
             .iter()
             .any(|i| matches!(i, Intervention::GainClamped { .. })));
+    }
+
+    #[test]
+    fn a_torque_controller_soft_starts_from_a_held_pose() {
+        let mut s = SafetyLayer::new(&RobotConfig::a1(), SafetyConfig::default()).unwrap();
+        s.observe(state(0.0, 1.0, 0.0, 0.0));
+        let torque_only = LegMap::splat(
+            [JointCommand {
+                tau: 6.0,
+                ..Default::default()
+            }; 3],
+        );
+        // At the start: the hold alone (Kp 40 at the start pose), no torque.
+        let (out, _) = s.filter(0.0, &torque_only);
+        let j = out[Leg::FrontLeft][1];
+        assert_eq!((j.kp, j.kd, j.tau), (40.0, 1.0, 0.0));
+        assert!((j.q - 1.0).abs() < 1e-12);
+        // Half way: τ = 0.5·6 + 0.5·40·(1.0 − q) − 0.5·q̇ at any q, q̇.
+        s.observe(state(1.0, 1.0, 0.0, 0.0));
+        let (out, _) = s.filter(1.0, &torque_only);
+        let j = out[Leg::FrontLeft][1];
+        let law = |q: f64, dq: f64| j.tau + j.kp * (j.q - q) + j.kd * (j.dq - dq);
+        for (q, dq) in [(1.0, 0.0), (0.9, 0.3), (1.1, -1.0)] {
+            let want = 0.5 * 6.0 + 0.5 * 40.0 * (1.0 - q) - 0.5 * 1.0 * dq;
+            assert!((law(q, dq) - want).abs() < 1e-9, "{q} {dq}");
+        }
+        // After the ramp the command passes unchanged.
+        s.observe(state(2.5, 1.0, 0.0, 0.0));
+        let (out, log) = s.filter(2.5, &torque_only);
+        assert_eq!(out, torque_only);
+        assert!(log.is_empty());
     }
 
     #[test]

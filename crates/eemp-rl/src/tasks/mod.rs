@@ -1,4 +1,5 @@
 //! The tasks PPO trains on.
 
 pub mod cartpole;
+pub mod imitation;
 pub mod model_free;

@@ -355,15 +355,16 @@ fn frame(state: &RobotState, q0: &LegMap<Vector3<f64>>) -> Vec<f32> {
 }
 
 /// The observation (see the module docs), written into `out` (length `config.obs_dim()`).
+/// Returns how many values it wrote (tasks that extend O^M append after them).
 pub fn observe(
-    config: &ModelFreeConfig,
+    extra: &ExtraObs,
     kin: &LegKinematics,
     q0: &LegMap<Vector3<f64>>,
     state: &RobotState,
     command: &VelocityCommand,
     memory: &PolicyMemory,
     out: &mut [f32],
-) {
+) -> usize {
     let mut i = 0;
     let mut put = |v: f64| {
         out[i] = v as f32;
@@ -386,7 +387,7 @@ pub fn observe(
     put(command.vy_mps);
     put(command.yaw_rate_rps);
     let r_body_world = state.body.r_world_body.inverse();
-    let e = &config.extra_obs;
+    let e = extra;
     if e.base_lin_vel {
         (r_body_world * state.body.v_world)
             .iter()
@@ -405,6 +406,7 @@ pub fn observe(
     for h in &memory.history {
         h.iter().for_each(|&v| put(v as f64));
     }
+    i
 }
 
 /// Joint targets for an action: q₀ + scale · clip(a, ±clip).
@@ -413,10 +415,20 @@ pub fn joint_targets(
     q0: &LegMap<Vector3<f64>>,
     action: &[f32],
 ) -> LegMap<Vector3<f64>> {
+    targets_about(q0, config.action_scale, config.action_clip, action)
+}
+
+/// Joint targets origin + scale · clip(a, ±clip).
+pub fn targets_about(
+    origin: &LegMap<Vector3<f64>>,
+    scale: f64,
+    clip: f64,
+    action: &[f32],
+) -> LegMap<Vector3<f64>> {
     LegMap::from_fn(|leg| {
         let k = 3 * leg.index();
-        let a = |j: usize| (action[k + j] as f64).clamp(-config.action_clip, config.action_clip);
-        q0[leg] + Vector3::new(a(0), a(1), a(2)) * config.action_scale
+        let a = |j: usize| (action[k + j] as f64).clamp(-clip, clip);
+        origin[leg] + Vector3::new(a(0), a(1), a(2)) * scale
     })
 }
 
@@ -436,6 +448,11 @@ pub fn tracking_ang_vel(cmd: &VelocityCommand, yaw_rate: f64, sigma: f64) -> f64
 /// v_z² (world).
 pub fn lin_vel_z(v_world: &Vector3<f64>) -> f64 {
     v_world.z * v_world.z
+}
+
+/// (v_z − v_z,ref)² (world): the tracking row's vertical term against a reference.
+pub fn lin_vel_z_error(v_world: &Vector3<f64>, vz_ref: f64) -> f64 {
+    (v_world.z - vz_ref).powi(2)
 }
 
 /// Σ q̈², with q̈ from the velocity change over one policy period.
@@ -507,12 +524,55 @@ pub fn energy(qd: &[f64; 12], tau: &[f64; 12]) -> f64 {
     qd.iter().zip(tau).map(|(a, b)| (a * b).abs()).sum()
 }
 
-fn flat(m: &LegMap<Vector3<f64>>) -> [f64; 12] {
+pub(crate) fn flat(m: &LegMap<Vector3<f64>>) -> [f64; 12] {
     let mut out = [0.0; 12];
     for leg in Leg::ALL {
         out[3 * leg.index()..3 * leg.index() + 3].copy_from_slice(m[leg].as_slice());
     }
     out
+}
+
+/// What one policy period of joint PD at the physics rate ended in.
+pub(crate) struct PdPeriod {
+    /// The robot fell or touched the ground with its trunk (the period stops there).
+    pub fell: bool,
+    /// MuJoCo reported an instability (counted as a fall too).
+    pub unstable: bool,
+    /// Joint torques of the last physics step.
+    pub last_tau: [f64; 12],
+}
+
+/// Steps the closed loop `substeps` times under the joint PD.
+pub(crate) fn run_pd_period(
+    loop_: &mut ClosedLoop,
+    pd: &mut JointPd,
+    command: VelocityCommand,
+    substeps: usize,
+) -> PdPeriod {
+    let mut p = PdPeriod {
+        fell: false,
+        unstable: false,
+        last_tau: [0.0; 12],
+    };
+    for _ in 0..substeps {
+        let mut tau_seen = None;
+        let out = loop_.step(pd, command, &mut |r| {
+            tau_seen = Some(flat(&r.output.torques));
+        });
+        if let Some(t) = tau_seen {
+            p.last_tau = t;
+        }
+        if loop_.sim_mut().take_instability() {
+            p.unstable = true;
+            p.fell = true;
+            break;
+        }
+        if out.fell || loop_.sim().trunk_contact() {
+            p.fell = true;
+            break;
+        }
+    }
+    p
 }
 
 /// Task state that a checkpoint must carry to continue bit for bit.
@@ -627,7 +687,7 @@ impl ModelFreeEnv {
     fn write_obs(&self, obs: &mut [f32]) {
         let state = self.loop_.sim().ground_truth_state();
         observe(
-            &self.config,
+            &self.config.extra_obs,
             &self.kin,
             &self.q0,
             &state,
@@ -739,27 +799,11 @@ impl Env for ModelFreeEnv {
         let cfg = &self.config;
         let state_before = self.loop_.sim().ground_truth_state();
         self.pd.targets = joint_targets(cfg, &self.q0, action);
-        let mut fell = false;
-        let mut unstable = false;
-        let mut last_tau = [0.0; 12];
-        for _ in 0..self.substeps {
-            let mut tau_seen = None;
-            let out = self.loop_.step(&mut self.pd, self.command, &mut |r| {
-                tau_seen = Some(flat(&r.output.torques));
-            });
-            if let Some(t) = tau_seen {
-                last_tau = t;
-            }
-            if self.loop_.sim_mut().take_instability() {
-                unstable = true;
-                fell = true;
-                break;
-            }
-            if out.fell || self.loop_.sim().trunk_contact() {
-                fell = true;
-                break;
-            }
-        }
+        let PdPeriod {
+            fell,
+            unstable,
+            last_tau,
+        } = run_pd_period(&mut self.loop_, &mut self.pd, self.command, self.substeps);
         let dt = cfg.policy_period_s;
         let sim = self.loop_.sim();
         let state = sim.ground_truth_state();

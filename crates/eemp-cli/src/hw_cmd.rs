@@ -1,0 +1,365 @@
+//! `eemp hw` (a controller on an A1 over UDP, behind the safety layer) and `eemp sim-robot`
+//! (a MuJoCo A1 speaking the same protocol).
+
+use eemp_core::estimator::KfConfig;
+use eemp_core::hardware::a1_protocol::LowState;
+use eemp_core::hardware::robot_io::motor_index;
+use eemp_core::hardware::safety::SafetyConfig;
+use eemp_core::leg::Leg;
+use eemp_core::planner::params_table::ParamsTable;
+use eemp_core::planner::{Gait, PlannerConfig, PlannerParams, VelocityCommand};
+use eemp_core::robot::RobotConfig;
+use eemp_hw::link::{Faults, Link};
+use eemp_hw::runner::{run_hw, HwOptions, TorqueSpike, Transport};
+use eemp_hw::sim_robot::{run_sim_robot, SimRobotOptions};
+use eemp_sim::walk::{eemp_controller, StartPose, WalkSpec};
+use std::io::Write;
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::sync::atomic::AtomicBool;
+
+/// Faults to inject on the datagrams this side sends (tests, rehearsals).
+#[derive(clap::Args, Debug, Clone)]
+pub struct FaultArgs {
+    /// Probability that a sent datagram is lost.
+    #[arg(long, default_value_t = 0.0)]
+    pub drop: f64,
+    /// Probability that one byte of a sent datagram is flipped.
+    #[arg(long, default_value_t = 0.0)]
+    pub corrupt: f64,
+    /// Probability that a datagram is sent after the next one.
+    #[arg(long, default_value_t = 0.0)]
+    pub reorder: f64,
+    /// Delay of every sent datagram, ms.
+    #[arg(long, default_value_t = 0.0)]
+    pub delay_ms: f64,
+    #[arg(long, default_value_t = 1)]
+    pub fault_seed: u64,
+}
+
+impl FaultArgs {
+    fn faults(&self) -> Faults {
+        Faults {
+            drop_prob: self.drop,
+            corrupt_prob: self.corrupt,
+            reorder_prob: self.reorder,
+            delay_s: self.delay_ms * 1e-3,
+            seed: self.fault_seed,
+        }
+    }
+}
+
+#[derive(clap::Args, Debug)]
+#[command(allow_negative_numbers = true)]
+pub struct HwArgs {
+    /// The robot's address (the A1: 192.168.123.10:8007; `eemp sim-robot`: 127.0.0.1:PORT).
+    #[arg(long, required_unless_present = "dry_run")]
+    pub robot: Option<SocketAddr>,
+    /// Local address to send from (the SDK uses port 8080).
+    #[arg(long, default_value = "0.0.0.0:8080")]
+    pub bind: SocketAddr,
+    /// Print the first commands it would send for a robot standing still, without a socket.
+    #[arg(long)]
+    pub dry_run: bool,
+    /// eemp, model-free or imitation (with --policy).
+    #[arg(long, default_value = "eemp")]
+    pub controller: String,
+    #[arg(long)]
+    pub policy: Option<PathBuf>,
+    /// EEMP's gait and per-speed table (default tables/a1_<gait>.toml).
+    #[arg(long, default_value = "trot")]
+    pub gait: String,
+    #[arg(long)]
+    pub params_table: Option<PathBuf>,
+    #[arg(long, default_value_t = 0.0)]
+    pub speed: f64,
+    #[arg(long, default_value_t = 0.0)]
+    pub lateral: f64,
+    #[arg(long, default_value_t = 0.0)]
+    pub yaw_rate: f64,
+    /// Seconds to run (then the robot is left in damping).
+    #[arg(long, default_value_t = 10.0)]
+    pub duration: f64,
+    /// Control rate, Hz.
+    #[arg(long, default_value_t = 500.0)]
+    pub rate: f64,
+    /// Safety settings (TOML, `eemp_core::hardware::safety::SafetyConfig`; default values
+    /// otherwise).
+    #[arg(long)]
+    pub safety: Option<PathBuf>,
+    /// Fault injection: add this torque (N·m) to FL calf's command for one cycle at --spike-at.
+    #[arg(long, requires = "spike_at")]
+    pub spike_nm: Option<f64>,
+    #[arg(long)]
+    pub spike_at: Option<f64>,
+    #[command(flatten)]
+    pub faults: FaultArgs,
+    /// summary.json and trace.csv (100 Hz) go here.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
+fn controller_for(
+    args: &HwArgs,
+    robot: &RobotConfig,
+) -> Result<Box<dyn eemp_core::control::Controller>, String> {
+    let dt = 1.0 / args.rate;
+    match args.controller.as_str() {
+        "eemp" => {
+            let gait: Gait = args.gait.parse()?;
+            let mut spec = WalkSpec::constant(
+                PlannerConfig {
+                    gait,
+                    ..Default::default()
+                },
+                PlannerParams::default(),
+                VelocityCommand::default(),
+                args.duration,
+            );
+            let table = args
+                .params_table
+                .clone()
+                .unwrap_or_else(|| PathBuf::from(format!("tables/a1_{gait}.toml")));
+            spec.params_table = Some(ParamsTable::load(&table).map_err(|e| e.to_string())?);
+            Ok(Box::new(
+                eemp_controller(robot, &spec).map_err(|e| e.to_string())?,
+            ))
+        }
+        c @ ("model-free" | "imitation") => {
+            let p = args
+                .policy
+                .as_ref()
+                .ok_or_else(|| format!("--controller {c} needs --policy FILE"))?;
+            let policy = eemp_rl::policy::Policy::load(p, Some(c.parse()?))?;
+            Ok(Box::new(eemp_rl::controller::PolicyController::new(
+                policy, robot, dt,
+            )?))
+        }
+        other => Err(format!(
+            "unknown --controller '{other}': allowed eemp, model-free, imitation"
+        )),
+    }
+}
+
+/// The state datagram of the A1 standing still, level, in the standing pose.
+fn standing_state(robot: &RobotConfig) -> LowState {
+    let mut s = LowState::default();
+    s.imu.quaternion = [1.0, 0.0, 0.0, 0.0];
+    s.imu.accelerometer = [0.0, 0.0, 9.81];
+    let q = robot.standing_pose();
+    for leg in Leg::ALL {
+        for j in 0..3 {
+            s.motors[motor_index(leg, j)].q = q[leg][j] as f32;
+        }
+    }
+    s
+}
+
+pub fn run_hw_cmd(args: &HwArgs) -> Result<(), String> {
+    let robot = RobotConfig::a1();
+    let safety: SafetyConfig = match &args.safety {
+        Some(p) => eemp_core::config_error::load_toml(p).map_err(|e| e.to_string())?,
+        None => SafetyConfig::default(),
+    };
+    for (name, v, lo, hi) in [
+        ("--speed", args.speed, -1.5, 1.5),
+        ("--lateral", args.lateral, -1.0, 1.0),
+        ("--yaw-rate", args.yaw_rate, -2.0, 2.0),
+    ] {
+        if !(v.is_finite() && (lo..=hi).contains(&v)) {
+            return Err(format!("{name} {v} is out of range: allowed [{lo}, {hi}]"));
+        }
+    }
+    let transport = if args.dry_run {
+        Transport::DryRun {
+            state: Box::new(standing_state(&robot)),
+        }
+    } else {
+        Transport::Udp {
+            robot: args.robot.expect("clap requires --robot without --dry-run"),
+            bind: args.bind,
+            faults: args.faults.faults(),
+        }
+    };
+    let opts = HwOptions {
+        transport,
+        rate_hz: args.rate,
+        duration_s: if args.dry_run {
+            args.duration.min(0.02)
+        } else {
+            args.duration
+        },
+        safety,
+        kf: KfConfig::default(),
+        torque_spike: args.spike_at.map(|at_s| TorqueSpike {
+            at_s,
+            leg: Leg::FrontLeft,
+            joint: 2,
+            nm: args.spike_nm.unwrap_or(0.0),
+        }),
+    };
+    opts.validate()?;
+    let mut controller = controller_for(args, &robot)?;
+    let command = VelocityCommand {
+        vx_mps: args.speed,
+        vy_mps: args.lateral,
+        yaw_rate_rps: args.yaw_rate,
+    };
+    let mut trace = match &args.out {
+        Some(dir) => {
+            std::fs::create_dir_all(dir)
+                .map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+            let mut f = std::fs::File::create(dir.join("trace.csv"))
+                .map_err(|e| format!("cannot write trace.csv: {e}"))?;
+            writeln!(
+                f,
+                "time_s,x_m,y_m,z_m,vx_mps,vy_mps,vz_mps,yaw_rate_rps,cmd_vx_mps,new_state,interventions"
+            )
+            .map_err(|e| e.to_string())?;
+            Some(f)
+        }
+        None => None,
+    };
+    let mut next_row = 0.0;
+    let mut printed = 0;
+    let dry = args.dry_run;
+    let report = run_hw(&robot, controller.as_mut(), &|_| command, &opts, &mut |c| {
+        if dry && printed < 5 {
+            printed += 1;
+            println!("t {:.3} s: would send (kp, kd, q*, τ) per joint:", c.t_s);
+            for leg in Leg::ALL {
+                let j = c.sent[leg];
+                println!(
+                    "  {}: {}",
+                    leg.short_name(),
+                    j.iter()
+                        .map(|j| format!("({:.1}, {:.1}, {:+.3}, {:+.2})", j.kp, j.kd, j.q, j.tau))
+                        .collect::<Vec<_>>()
+                        .join(" ")
+                );
+            }
+            println!("  interventions: {:?}", c.interventions);
+        }
+        if let (Some(f), Some(e)) = (trace.as_mut(), c.estimate) {
+            if c.t_s >= next_row {
+                next_row += 0.01;
+                let b = &e.body;
+                let _ = writeln!(
+                    f,
+                    "{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.3},{},{}",
+                    c.t_s,
+                    b.p_world.x,
+                    b.p_world.y,
+                    b.p_world.z,
+                    b.v_world.x,
+                    b.v_world.y,
+                    b.v_world.z,
+                    b.omega_world.z,
+                    c.command.vx_mps,
+                    c.new_state as u8,
+                    c.interventions.len()
+                );
+            }
+        }
+    })?;
+    let summary = serde_json::json!({
+        "controller": args.controller,
+        "robot": args.robot.map(|a| a.to_string()),
+        "dry_run": args.dry_run,
+        "rate_hz": args.rate,
+        "command": {"vx_mps": args.speed, "vy_mps": args.lateral, "yaw_rate_rps": args.yaw_rate},
+        "report": report,
+    });
+    println!("{}", serde_json::to_string(&summary).expect("serialises"));
+    if let Some(dir) = &args.out {
+        std::fs::write(
+            dir.join("summary.json"),
+            serde_json::to_string_pretty(&summary).expect("serialises"),
+        )
+        .map_err(|e| format!("cannot write summary.json: {e}"))?;
+    }
+    Ok(())
+}
+
+#[derive(clap::Args, Debug)]
+pub struct SimRobotArgs {
+    /// Address to listen on for command datagrams.
+    #[arg(long, default_value = "127.0.0.1:8007")]
+    pub bind: SocketAddr,
+    /// Simulated seconds before it stops.
+    #[arg(long, default_value_t = 60.0)]
+    pub duration: f64,
+    /// Stop sending states after this many seconds (a frozen state stream).
+    #[arg(long)]
+    pub freeze_after: Option<f64>,
+    #[command(flatten)]
+    pub faults: FaultArgs,
+    /// summary.json and truth.csv (100 Hz) go here.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
+pub fn run_sim_robot_cmd(args: &SimRobotArgs) -> Result<(), String> {
+    if !(args.duration > 0.0 && args.duration <= 3600.0) {
+        return Err(format!(
+            "--duration {} is out of range: allowed (0, 3600] s",
+            args.duration
+        ));
+    }
+    let robot = RobotConfig::a1();
+    // Standing as EEMP starts (Table II's trunk height, feet under the hips).
+    let spec = WalkSpec::constant(
+        PlannerConfig::default(),
+        PlannerParams::default(),
+        VelocityCommand::default(),
+        args.duration,
+    );
+    let start = StartPose::eemp(&robot, &spec).map_err(|e| e.to_string())?;
+    let link = Link::bind(args.bind, args.faults.faults())?;
+    eprintln!("sim-robot listening on {}", link.local_addr());
+    let opts = SimRobotOptions {
+        duration_s: args.duration,
+        state_period_s: 0.002,
+        freeze_after_s: args.freeze_after,
+        start,
+    };
+    let report = run_sim_robot(&robot, &opts, link, &AtomicBool::new(false))?;
+    let summary = serde_json::json!({
+        "steps": report.steps,
+        "commands": report.commands,
+        "bad_datagrams": report.bad_datagrams,
+        "late_steps": report.late_steps,
+        "fell_at_s": report.fell_at_s,
+        "link": report.link,
+    });
+    println!("{}", serde_json::to_string(&summary).expect("serialises"));
+    if let Some(dir) = &args.out {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+        std::fs::write(
+            dir.join("summary.json"),
+            serde_json::to_string_pretty(&summary).expect("serialises"),
+        )
+        .map_err(|e| format!("cannot write summary.json: {e}"))?;
+        let mut f = std::fs::File::create(dir.join("truth.csv"))
+            .map_err(|e| format!("cannot write truth.csv: {e}"))?;
+        writeln!(f, "time_s,x_m,y_m,z_m,vx_mps,vy_mps,vz_mps,yaw_rate_rps")
+            .map_err(|e| e.to_string())?;
+        for r in &report.truth {
+            writeln!(
+                f,
+                "{:.3},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4}",
+                r.t_s,
+                r.p_world[0],
+                r.p_world[1],
+                r.p_world[2],
+                r.v_world[0],
+                r.v_world[1],
+                r.v_world[2],
+                r.yaw_rate_rps
+            )
+            .map_err(|e| e.to_string())?;
+        }
+    }
+    Ok(())
+}

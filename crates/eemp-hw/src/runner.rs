@@ -1,0 +1,331 @@
+//! `eemp hw`: any [`Controller`] on an A1 through its legacy low-level UDP protocol.
+//!
+//! Every cycle (500 Hz by default): read the state datagrams that arrived (bad CRC or length
+//! counted and dropped; a tick not newer than the last one — a late or reordered datagram —
+//! dropped), show the newest to the safety layer, run the Kalman filter on it (IMU attitude,
+//! leg kinematics, contact trust from the controller's plan or its torques, as in simulation:
+//! [`eemp_core::estimator::ContactTrust`]), run the controller on the estimate, pass its
+//! torques through the safety layer and send the command datagram. A cycle without a new state
+//! re-sends the last command through the safety layer, whose watchdog turns a silent robot
+//! into damping. The controller's dynamics (mass matrix and bias of each leg, for the swing
+//! law) come from MuJoCo evaluated at the estimate — a model of the robot file, never stepped.
+
+use crate::link::{Faults, Link, LinkStats};
+use eemp_core::body_state::{BodyState, RobotState};
+use eemp_core::control::{ControlInput, Controller};
+use eemp_core::controller::feet_world;
+use eemp_core::estimator::{ContactTrust, EstimatorInput, KfConfig, LinearKf};
+use eemp_core::hardware::a1_protocol::LowState;
+use eemp_core::hardware::robot_io::{low_cmd, torque_command, SensedState};
+use eemp_core::hardware::safety::{Damping, Intervention, RobotCommand, SafetyConfig, SafetyLayer};
+use eemp_core::kinematics::LegKinematics;
+use eemp_core::leg::{Leg, LegMap};
+use eemp_core::planner::VelocityCommand;
+use eemp_core::robot::RobotConfig;
+use eemp_sim::Simulation;
+use nalgebra::Vector3;
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::net::SocketAddr;
+use std::time::{Duration, Instant};
+
+/// A torque added to one joint's command for one cycle (fault injection: the safety layer
+/// must catch it).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TorqueSpike {
+    pub at_s: f64,
+    pub leg: Leg,
+    pub joint: usize,
+    pub nm: f64,
+}
+
+/// Where commands go and states come from.
+#[derive(Clone, Debug)]
+pub enum Transport {
+    /// UDP to the robot (or `eemp sim-robot`), with faults on the commands sent.
+    Udp {
+        robot: SocketAddr,
+        bind: SocketAddr,
+        faults: Faults,
+    },
+    /// No socket: the robot is taken to stand still in `state` (the state datagram it would
+    /// send), and the commands are only shown to the observer.
+    DryRun { state: Box<LowState> },
+}
+
+#[derive(Clone, Debug)]
+pub struct HwOptions {
+    pub transport: Transport,
+    pub rate_hz: f64,
+    pub duration_s: f64,
+    pub safety: SafetyConfig,
+    pub kf: KfConfig,
+    pub torque_spike: Option<TorqueSpike>,
+}
+
+impl HwOptions {
+    pub fn validate(&self) -> Result<(), String> {
+        if !(50.0..=2000.0).contains(&self.rate_hz) {
+            return Err(format!(
+                "rate {} Hz is out of range: allowed [50, 2000]",
+                self.rate_hz
+            ));
+        }
+        if !(self.duration_s > 0.0 && self.duration_s <= 3600.0) {
+            return Err(format!(
+                "duration {} s is out of range: allowed (0, 3600]",
+                self.duration_s
+            ));
+        }
+        self.safety.validate().map_err(|e| e.to_string())?;
+        self.kf.validate().map_err(|e| e.to_string())?;
+        if let Transport::Udp { faults, .. } = &self.transport {
+            faults.validate("hw")?;
+        }
+        Ok(())
+    }
+}
+
+/// One cycle, for logs and traces.
+pub struct HwCycle<'a> {
+    /// Runner clock, s.
+    pub t_s: f64,
+    /// The estimate the controller acted on (None before the first state).
+    pub estimate: Option<&'a RobotState>,
+    pub command: VelocityCommand,
+    /// What was sent.
+    pub sent: &'a RobotCommand,
+    pub interventions: &'a [Intervention],
+    pub new_state: bool,
+}
+
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct HwReport {
+    pub cycles: usize,
+    pub states: usize,
+    pub bad_datagrams: usize,
+    /// State datagrams older than one already seen (reordered or duplicated).
+    pub stale_states: usize,
+    /// Cycles that started more than one period late.
+    pub late_cycles: usize,
+    /// Interventions of the safety layer by kind.
+    pub interventions: BTreeMap<String, usize>,
+    /// When the watchdog first sent damping after states had arrived, runner clock, s.
+    pub first_watchdog_s: Option<f64>,
+    /// When the last state datagram arrived, runner clock, s.
+    pub last_state_s: Option<f64>,
+    pub latched: Option<String>,
+    pub link: LinkStats,
+}
+
+fn kind(i: &Intervention) -> &'static str {
+    match i {
+        Intervention::Watchdog { .. } => "watchdog",
+        Intervention::EStop => "estop",
+        Intervention::PowerProtect { .. } => "power_protect",
+        Intervention::SoftStart { .. } => "soft_start",
+        Intervention::PositionClamped { .. } => "position_clamped",
+        Intervention::TorqueClamped { .. } => "torque_clamped",
+        Intervention::GainClamped { .. } => "gain_clamped",
+        Intervention::NonFinite => "non_finite",
+    }
+}
+
+/// The estimate the filter starts from: attitude from the IMU, the trunk above its lowest
+/// foot on flat ground, at rest.
+fn start_state(kin: &LegKinematics, foot_radius_m: f64, s: &SensedState, t_s: f64) -> RobotState {
+    let r = s.imu.r_world_body;
+    let lowest = Leg::ALL
+        .iter()
+        .map(|&l| (r * kin.foot_position_body(l, &s.joints[l].q)).z)
+        .fold(f64::INFINITY, f64::min);
+    RobotState {
+        time_s: t_s,
+        body: BodyState {
+            p_world: Vector3::new(0.0, 0.0, -lowest + foot_radius_m),
+            r_world_body: r,
+            v_world: Vector3::zeros(),
+            omega_world: r * s.imu.gyro_body,
+        },
+        joints: s.joints,
+    }
+}
+
+/// Runs `controller` on the robot for `opts.duration_s`; `command_at(t)` is the operator's
+/// command at robot time `t` (s since the first state).
+pub fn run_hw(
+    robot: &RobotConfig,
+    controller: &mut dyn Controller,
+    command_at: &dyn Fn(f64) -> VelocityCommand,
+    opts: &HwOptions,
+    observer: &mut dyn FnMut(&HwCycle),
+) -> Result<HwReport, String> {
+    opts.validate()?;
+    let kin = LegKinematics::new(robot);
+    let mut model = Simulation::new(robot, &Default::default()).map_err(|e| e.to_string())?;
+    let mut safety = SafetyLayer::new(robot, opts.safety.clone()).map_err(|e| e.to_string())?;
+    let mut link = match &opts.transport {
+        Transport::Udp { bind, faults, .. } => Some(Link::bind(*bind, faults.clone())?),
+        Transport::DryRun { .. } => None,
+    };
+    let mut report = HwReport::default();
+    let period = 1.0 / opts.rate_hz;
+    let wall0 = Instant::now();
+    let mut kf: Option<LinearKf> = None;
+    let mut trust = ContactTrust::new(0.0);
+    let mut newest_tick: Option<u32> = None;
+    let mut first_tick_s = 0.0;
+    let mut estimate: Option<RobotState> = None;
+    let mut last_torques = LegMap::splat(Vector3::zeros());
+    let mut cmd = torque_command(&last_torques);
+    let mut vel_cmd = VelocityCommand::default();
+    let mut cycle = 0usize;
+    loop {
+        let now = wall0.elapsed().as_secs_f64();
+        if now >= opts.duration_s {
+            break;
+        }
+        // The newest state that arrived since the last cycle.
+        let mut newest: Option<SensedState> = None;
+        let mut take = |bytes: &[u8], report: &mut HwReport| match LowState::decode(bytes) {
+            Ok(s) => {
+                if newest_tick.is_some_and(|t| s.tick <= t) {
+                    report.stale_states += 1;
+                    return;
+                }
+                let sensed = SensedState::from_low_state(&s);
+                if !sensed.is_finite() {
+                    report.bad_datagrams += 1;
+                    return;
+                }
+                newest_tick = Some(s.tick);
+                report.states += 1;
+                newest = Some(sensed);
+            }
+            Err(_) => report.bad_datagrams += 1,
+        };
+        match (&mut link, &opts.transport) {
+            (Some(l), _) => {
+                while let Some((bytes, _)) = l.recv() {
+                    take(&bytes, &mut report);
+                }
+            }
+            (None, Transport::DryRun { state }) => {
+                let mut s = (**state).clone();
+                s.tick = (now * 1e6) as u32 + 1;
+                let bytes = s.encode().map_err(|e| e.to_string())?;
+                take(&bytes, &mut report);
+            }
+            (None, Transport::Udp { .. }) => unreachable!("a UDP transport has a link"),
+        }
+        let fresh = newest.is_some();
+        if let Some(sensed) = newest {
+            report.last_state_s = Some(now);
+            safety.observe(sensed.measured(now));
+            if kf.is_none() {
+                first_tick_s = sensed.tick_s;
+            }
+            let t = sensed.tick_s - first_tick_s;
+            let kf = match &mut kf {
+                Some(k) => k,
+                None => {
+                    let start = start_state(&kin, robot.leg.foot_radius_m, &sensed, t);
+                    trust = ContactTrust::new(t);
+                    kf.insert(
+                        LinearKf::new(opts.kf.clone(), kin.clone(), &start)
+                            .map_err(|e| e.to_string())?,
+                    )
+                }
+            };
+            let seen = RobotState {
+                time_s: t,
+                body: BodyState {
+                    r_world_body: sensed.imu.r_world_body,
+                    ..estimate.map(|e| e.body).unwrap_or_else(|| {
+                        start_state(&kin, robot.leg.foot_radius_m, &sensed, t).body
+                    })
+                },
+                joints: sensed.joints,
+            };
+            let w = trust.update(controller.plan(), &kin, &seen, &last_torques);
+            let est = kf.update(&EstimatorInput {
+                time_s: t,
+                imu: sensed.imu,
+                joints: sensed.joints,
+                contact_trust: w,
+            });
+            model.set_state(&est);
+            if controller.needs_dynamics() {
+                model.prepare();
+            } else {
+                model.prepare_kinematics();
+            }
+            vel_cmd = command_at(t);
+            let feet = feet_world(&kin, &est);
+            let out = controller.control(&ControlInput {
+                state: &est,
+                feet_world: &feet,
+                command: vel_cmd,
+                dynamics: &model,
+            });
+            last_torques = out.torques;
+            cmd = torque_command(&out.torques);
+            if let Some(sp) = opts.torque_spike {
+                if (t - sp.at_s).abs() < period / 2.0 {
+                    cmd[sp.leg][sp.joint].tau += sp.nm;
+                }
+            }
+            estimate = Some(est);
+        }
+        let (sent, log) = safety.filter(now, &cmd);
+        for i in &log {
+            *report.interventions.entry(kind(i).into()).or_default() += 1;
+            if matches!(i, Intervention::Watchdog { silent_s } if silent_s.is_finite())
+                && report.first_watchdog_s.is_none()
+            {
+                report.first_watchdog_s = Some(now);
+            }
+        }
+        let bytes = low_cmd(&sent).encode().map_err(|e| e.to_string())?;
+        if let (Some(l), Transport::Udp { robot, .. }) = (&mut link, &opts.transport) {
+            l.send(&bytes, *robot, now);
+        }
+        observer(&HwCycle {
+            t_s: now,
+            estimate: estimate.as_ref(),
+            command: vel_cmd,
+            sent: &sent,
+            interventions: &log,
+            new_state: fresh,
+        });
+        cycle += 1;
+        report.cycles = cycle;
+        let next = cycle as f64 * period;
+        let wait = next - wall0.elapsed().as_secs_f64();
+        if wait > 0.0 {
+            std::thread::sleep(Duration::from_secs_f64(wait));
+        } else if wait < -period {
+            report.late_cycles += 1;
+        }
+    }
+    report.latched = safety.damping().map(|d| match d {
+        Damping::EStop => "estop".into(),
+        Damping::PowerProtect => "power_protect".into(),
+    });
+    // Leaving: the motors keep the last command they got, so the last ones are damping.
+    safety.estop();
+    let (damp, _) = safety.filter(wall0.elapsed().as_secs_f64(), &cmd);
+    let bytes = low_cmd(&damp).encode().map_err(|e| e.to_string())?;
+    if let (Some(l), Transport::Udp { robot, .. }) = (&mut link, &opts.transport) {
+        for _ in 0..5 {
+            let now = wall0.elapsed().as_secs_f64();
+            l.send(&bytes, *robot, now);
+            l.flush(now + 1.0);
+            std::thread::sleep(Duration::from_millis(1));
+        }
+    }
+    if let Some(l) = link {
+        report.link = l.stats;
+    }
+    Ok(report)
+}

@@ -1,0 +1,210 @@
+//! `eemp sim-robot`: a MuJoCo A1 on loopback that behaves, for the protocol, as the A1 does.
+//!
+//! Every physics step (the robot file's 1 ms) it reads the command datagrams that arrived (bad
+//! CRC or length: counted and ignored, as the robot's board does), applies the latest one with
+//! the motor law τ_ff + K_p(q* − q) + K_d(q̇* − q̇) clamped to 33.5 N·m (no command yet: motors
+//! off), and every `state_period_s` sends a state datagram — IMU, joints, torque estimates,
+//! foot force sensors, µs tick — to whoever sent the last command. It runs in real time (the
+//! controller on the other side has a real clock) and starts standing in a pose you choose,
+//! when the first command arrives.
+
+use crate::link::{Link, LinkStats};
+use eemp_core::hardware::a1_protocol::{LowCmd, LowState, MotorCmd, MotorState, MOTORS};
+use eemp_core::hardware::robot_io::{motor_index, motor_torque};
+use eemp_core::leg::{Leg, LegMap};
+use eemp_core::robot::RobotConfig;
+use eemp_sim::closed_loop::FallLimits;
+use eemp_sim::walk::StartPose;
+use eemp_sim::Simulation;
+use nalgebra::Vector3;
+use serde::Serialize;
+use std::net::SocketAddr;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+#[derive(Clone, Debug)]
+pub struct SimRobotOptions {
+    /// Stop after this much simulated time, s (the robot "switches off").
+    pub duration_s: f64,
+    pub state_period_s: f64,
+    /// Stop sending states after this time (a frozen state stream), s.
+    pub freeze_after_s: Option<f64>,
+    pub start: StartPose,
+}
+
+/// One sample of the simulated robot's true state (10 ms apart).
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct TruthSample {
+    pub t_s: f64,
+    pub p_world: [f64; 3],
+    pub v_world: [f64; 3],
+    pub yaw_rate_rps: f64,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct SimRobotReport {
+    pub steps: usize,
+    pub commands: usize,
+    pub bad_datagrams: usize,
+    /// Physics steps that ran later than real time by more than 5 ms.
+    pub late_steps: usize,
+    pub fell_at_s: Option<f64>,
+    pub link: LinkStats,
+    pub truth: Vec<TruthSample>,
+}
+
+impl SimRobotReport {
+    /// Velocity RMSE against a constant forward command over `[t0, t1]`, m/s (heading frame:
+    /// the trunk's yaw is small on these straight runs, world axes are used).
+    pub fn vel_rmse_mps(&self, vx_mps: f64, t0: f64, t1: f64) -> Option<f64> {
+        let s: Vec<f64> = self
+            .truth
+            .iter()
+            .filter(|r| r.t_s >= t0 && r.t_s <= t1)
+            .map(|r| {
+                let (vx, vy) = (r.v_world[0], r.v_world[1]);
+                let speed = vx.hypot(vy);
+                (speed - vx_mps).powi(2)
+            })
+            .collect();
+        (!s.is_empty()).then(|| (s.iter().sum::<f64>() / s.len() as f64).sqrt())
+    }
+}
+
+/// A state datagram of the simulation's current state (after `prepare_kinematics`).
+fn low_state(sim: &Simulation, tau: &LegMap<Vector3<f64>>, tick: u32) -> LowState {
+    let imu = sim.imu();
+    let s = sim.ground_truth_state();
+    let q = imu.r_world_body.coords;
+    let (roll, pitch, yaw) = imu.r_world_body.euler_angles();
+    let mut out = LowState {
+        tick,
+        ..Default::default()
+    };
+    out.imu.quaternion = [q.w as f32, q.x as f32, q.y as f32, q.z as f32];
+    out.imu.gyroscope = imu.gyro_body.map(|v| v as f32).into();
+    out.imu.accelerometer = imu.accel_body.map(|v| v as f32).into();
+    out.imu.rpy = [roll as f32, pitch as f32, yaw as f32];
+    let forces = sim.foot_normal_forces_n();
+    for leg in Leg::ALL {
+        for j in 0..3 {
+            out.motors[motor_index(leg, j)] = MotorState {
+                mode: eemp_core::hardware::a1_protocol::MODE_SERVO,
+                q: s.joints[leg].q[j] as f32,
+                dq: s.joints[leg].qd[j] as f32,
+                tau_est: tau[leg][j] as f32,
+                q_raw: s.joints[leg].q[j] as f32,
+                dq_raw: s.joints[leg].qd[j] as f32,
+                ..Default::default()
+            };
+        }
+        out.foot_force[leg.index()] = forces[leg].round().clamp(0.0, 32767.0) as i16;
+    }
+    out
+}
+
+/// Runs the simulated robot on `link` (bound by the caller, with the faults of the state
+/// datagrams) until `duration_s` or until `stop` is set.
+pub fn run_sim_robot(
+    robot: &RobotConfig,
+    opts: &SimRobotOptions,
+    mut link: Link,
+    stop: &AtomicBool,
+) -> Result<SimRobotReport, String> {
+    let mut sim = Simulation::new(robot, &Default::default()).map_err(|e| e.to_string())?;
+    sim.reset(
+        Vector3::new(0.0, 0.0, opts.start.trunk_height_m + 0.002),
+        &opts.start.joints,
+    );
+    let dt = sim.timestep_s();
+    let limits = FallLimits::default();
+    let mut motors: Option<[MotorCmd; MOTORS]> = None;
+    let mut peer: Option<SocketAddr> = None;
+    let mut report = SimRobotReport {
+        steps: 0,
+        commands: 0,
+        bad_datagrams: 0,
+        late_steps: 0,
+        fell_at_s: None,
+        link: LinkStats::default(),
+        truth: Vec::new(),
+    };
+    let state_every = (opts.state_period_s / dt).round().max(1.0) as usize;
+    // The robot is put down in its start pose when the controller first speaks: until the
+    // first command, time stands still (states are not sent either; the SDK's robot answers
+    // only once commanded).
+    while motors.is_none() && !stop.load(Ordering::Relaxed) {
+        match link.recv() {
+            Some((bytes, from)) => match LowCmd::decode(&bytes) {
+                Ok(c) => {
+                    motors = Some(c.motors);
+                    peer = Some(from);
+                    report.commands += 1;
+                }
+                Err(_) => report.bad_datagrams += 1,
+            },
+            None => std::thread::sleep(Duration::from_micros(200)),
+        }
+    }
+    let wall0 = Instant::now();
+    while sim.time_s() < opts.duration_s && !stop.load(Ordering::Relaxed) {
+        let now = wall0.elapsed().as_secs_f64();
+        while let Some((bytes, from)) = link.recv() {
+            match LowCmd::decode(&bytes) {
+                Ok(c) => {
+                    motors = Some(c.motors);
+                    peer = Some(from);
+                    report.commands += 1;
+                }
+                Err(_) => report.bad_datagrams += 1,
+            }
+        }
+        sim.prepare_kinematics();
+        let state = sim.ground_truth_state();
+        let tau = LegMap::from_fn(|leg| {
+            Vector3::from_fn(|j, _| match &motors {
+                Some(m) => motor_torque(
+                    &m[motor_index(leg, j)],
+                    state.joints[leg].q[j],
+                    state.joints[leg].qd[j],
+                    robot.leg.torque_limit_nm,
+                ),
+                None => 0.0,
+            })
+        });
+        let frozen = opts.freeze_after_s.is_some_and(|t| sim.time_s() >= t);
+        if report.steps.is_multiple_of(state_every) && !frozen {
+            if let Some(to) = peer {
+                let tick = (sim.time_s() * 1e6).round() as u32;
+                let bytes = low_state(&sim, &tau, tick)
+                    .encode()
+                    .map_err(|e| e.to_string())?;
+                link.send(&bytes, to, now);
+            }
+        }
+        link.flush(now);
+        if report.steps.is_multiple_of(10) {
+            let b = state.body;
+            report.truth.push(TruthSample {
+                t_s: state.time_s,
+                p_world: b.p_world.into(),
+                v_world: b.v_world.into(),
+                yaw_rate_rps: b.omega_world.z,
+            });
+        }
+        if report.fell_at_s.is_none() && (limits.fallen(&state) || sim.trunk_contact()) {
+            report.fell_at_s = Some(state.time_s);
+        }
+        sim.advance(&tau);
+        report.steps += 1;
+        // Real time: wait for the wall clock to catch up with the simulation.
+        let ahead = sim.time_s() - wall0.elapsed().as_secs_f64();
+        if ahead > 0.0 {
+            std::thread::sleep(Duration::from_secs_f64(ahead));
+        } else if ahead < -0.005 {
+            report.late_steps += 1;
+        }
+    }
+    report.link = link.stats;
+    Ok(report)
+}
