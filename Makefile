@@ -12,7 +12,7 @@ $(MUJOCO):
 mujoco: $(MUJOCO)
 
 demo: $(MUJOCO)
-	cargo run --release -p eemp-cli -- walk --gait trot --speed 0.3 --duration 20 --out out/demo
+	cargo run --release -p eemp-cli -- walk --gait trot --speed 0.3 --duration 20 --out out/demo --video out/demo/walk.gif
 
 stand: $(MUJOCO)
 	cargo run --release -p eemp-cli -- stand --duration 20 --out out/stand

@@ -1,7 +1,10 @@
 //! `eemp`: the energy-efficient motion planner on a simulated Unitree A1.
 
 use clap::{Parser, Subcommand};
-use eemp_cli::{hw_cmd, retarget_cmd, stand_cmd, sweep_cmd, train_cmd, walk_cmd};
+use eemp_cli::{
+    hw_cmd, replay_cmd, retarget_cmd, stand_cmd, suite_cmd, sweep_cmd, teleop_cmd, train_cmd,
+    walk_cmd,
+};
 
 #[derive(Parser)]
 #[command(
@@ -31,6 +34,14 @@ enum Command {
     Hw(Box<hw_cmd::HwArgs>),
     /// A MuJoCo A1 that speaks the A1's low-level protocol on UDP (for `eemp hw`).
     SimRobot(hw_cmd::SimRobotArgs),
+    /// Drive EEMP in the simulation from a gamepad, the keyboard or a command script.
+    Teleop(teleop_cmd::TeleopArgs),
+    /// Render a video of a finished walk from its trace.
+    Replay(replay_cmd::ReplayArgs),
+    /// The methods against speed (the paper's Fig. 7 and Fig. 9), resumable, with a report.
+    Compare(suite_cmd::SuiteArgs),
+    /// The methods across terrains, friction, pushes and payloads, resumable, with a report.
+    Robustness(suite_cmd::SuiteArgs),
     /// Benchmarks.
     Bench {
         #[command(subcommand)]
@@ -87,6 +98,10 @@ fn main() {
         Command::Retarget(args) => retarget_cmd::run(&args),
         Command::Hw(args) => hw_cmd::run_hw_cmd(&args),
         Command::SimRobot(args) => hw_cmd::run_sim_robot_cmd(&args),
+        Command::Teleop(args) => teleop_cmd::run(&args),
+        Command::Replay(args) => replay_cmd::run(&args),
+        Command::Compare(args) => suite_cmd::compare(&args),
+        Command::Robustness(args) => suite_cmd::robustness(&args),
         Command::Bench {
             what: BenchCommand::Mpc { solves },
         } => {

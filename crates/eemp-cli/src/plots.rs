@@ -49,6 +49,16 @@ pub struct Panel {
     pub y_label: String,
     pub series: Vec<Series>,
     pub markers: Vec<(f64, String)>,
+    /// Shaded spreads (e.g. min–max over seeds) around series, in their colours.
+    pub bands: Vec<Band>,
+}
+
+/// A shaded band from `lo` to `hi` at the x values of series `of` of the same panel.
+#[derive(Debug, Clone, Default)]
+pub struct Band {
+    pub of: usize,
+    pub lo: Vec<f64>,
+    pub hi: Vec<f64>,
 }
 
 /// One small map in [`heatmap_grid`]; `z[iy][ix]` as for [`heatmap`].
@@ -201,17 +211,26 @@ fn grey_entry() -> (String, Swatch) {
     ("fell / no data".into(), Swatch::Bar(NAN_GREY))
 }
 
+/// Registers the embedded font once (plots and video overlays draw text with it).
+pub fn ensure_font() -> Result<(), String> {
+    static FONT_OK: OnceLock<bool> = OnceLock::new();
+    let ok = *FONT_OK.get_or_init(|| {
+        register_font(FONT, FontStyle::Normal, dejavu::sans::regular()).is_ok()
+            && register_font(FONT, FontStyle::Bold, dejavu::sans::bold()).is_ok()
+    });
+    if ok {
+        Ok(())
+    } else {
+        Err("cannot register the embedded font".into())
+    }
+}
+
 fn render(
     path: &Path,
     size: (u32, u32),
     draw: impl FnOnce(&Area) -> DrawResult,
 ) -> Result<(), PlotError> {
-    static FONT_OK: OnceLock<bool> = OnceLock::new();
-    let font_ok = *FONT_OK.get_or_init(|| {
-        register_font(FONT, FontStyle::Normal, dejavu::sans::regular()).is_ok()
-            && register_font(FONT, FontStyle::Bold, dejavu::sans::bold()).is_ok()
-    });
-    if !font_ok {
+    if ensure_font().is_err() {
         return Err(PlotError::Font { path: path.into() });
     }
     let draw_err = |e: Box<dyn Error>| PlotError::Draw {
@@ -265,6 +284,26 @@ fn draw_panel(area: &Area, panel: &Panel) -> DrawResult {
         .axis_desc_style((FONT, 15))
         .light_line_style(BLACK.mix(0.05))
         .draw()?;
+    for band in &panel.bands {
+        let Some(series) = panel.series.get(band.of) else {
+            continue;
+        };
+        let pts: Vec<(f64, f64, f64)> = series
+            .x
+            .iter()
+            .zip(band.lo.iter().zip(&band.hi))
+            .filter(|(x, (l, h))| x.is_finite() && l.is_finite() && h.is_finite())
+            .map(|(x, (l, h))| (*x, *l, *h))
+            .collect();
+        if pts.len() >= 2 {
+            let poly: Vec<(f64, f64)> = pts
+                .iter()
+                .map(|p| (p.0, p.2))
+                .chain(pts.iter().rev().map(|p| (p.0, p.1)))
+                .collect();
+            chart.draw_series([Polygon::new(poly, palette(band.of).mix(0.18).filled())])?;
+        }
+    }
     let mut entries = Vec::new();
     let has_data = |s: &&Series| finite_points(s).next().is_some();
     for (i, series) in panel.series.iter().filter(has_data).enumerate() {
@@ -662,6 +701,7 @@ mod tests {
             y_label,
             series,
             markers: vec![],
+            bands: vec![],
         }
     }
 
@@ -906,5 +946,88 @@ pub fn stick_figures(
             ],
             45,
         )
+    })
+}
+
+/// One chart of [`grouped_bars`]: `values[group][category]` (NaN: no bar).
+#[derive(Debug, Clone, Default)]
+pub struct BarPanel {
+    pub title: String,
+    pub y_label: String,
+    pub values: Vec<Vec<f64>>,
+}
+
+/// Grouped bar charts, one panel each: categories along x (named), one bar per group.
+pub fn grouped_bars(
+    path: &Path,
+    title: &str,
+    categories: &[String],
+    groups: &[String],
+    panels: &[BarPanel],
+) -> Result<(), PlotError> {
+    let height = TITLE_H + PANEL_H * panels.len().max(1) as u32;
+    render(path, (WIDTH, height), |root| {
+        let body = root.titled(title, title_style())?;
+        for (panel, area) in panels
+            .iter()
+            .zip(body.split_evenly((panels.len().max(1), 1)))
+        {
+            let (chart_area, legend) = area.split_horizontally(WIDTH - LEGEND_W);
+            let yr = axis_range(
+                panel
+                    .values
+                    .iter()
+                    .flatten()
+                    .copied()
+                    .filter(|v| v.is_finite())
+                    .chain([0.0]),
+            );
+            let n = categories.len().max(1);
+            let cats = categories.to_vec();
+            let mut chart = ChartBuilder::on(&chart_area)
+                .caption(&panel.title, (FONT, 18))
+                .margin(8)
+                .x_label_area_size(42)
+                .y_label_area_size(80)
+                .build_cartesian_2d(-0.5f64..(n as f64 - 0.5), yr.0..yr.1)?;
+            chart
+                .configure_mesh()
+                .disable_x_mesh()
+                .x_labels(n)
+                .x_label_formatter(&|x| {
+                    let i = x.round();
+                    if (x - i).abs() < 0.01 && i >= 0.0 && (i as usize) < cats.len() {
+                        cats[i as usize].clone()
+                    } else {
+                        String::new()
+                    }
+                })
+                .y_desc(panel.y_label.as_str())
+                .y_label_formatter(&tick_format(yr))
+                .label_style((FONT, 13))
+                .axis_desc_style((FONT, 15))
+                .draw()?;
+            let g = groups.len().max(1) as f64;
+            let w = 0.8 / g;
+            let mut entries = Vec::new();
+            for (gi, name) in groups.iter().enumerate() {
+                let color = palette(gi);
+                let bars = panel
+                    .values
+                    .get(gi)
+                    .into_iter()
+                    .flatten()
+                    .enumerate()
+                    .filter(|(_, v)| v.is_finite())
+                    .map(|(ci, v)| {
+                        let x0 = ci as f64 - 0.4 + gi as f64 * w;
+                        Rectangle::new([(x0, 0.0), (x0 + w * 0.9, *v)], color.filled())
+                    });
+                chart.draw_series(bars)?;
+                entries.push((name.clone(), Swatch::Bar(color)));
+            }
+            draw_legend(&legend, &entries, 36)?;
+        }
+        Ok(())
     })
 }

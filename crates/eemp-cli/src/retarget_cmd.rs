@@ -149,6 +149,7 @@ fn feet_figure(r: &Retargeted, png: &Path, clip: &str) -> Result<(), crate::plot
                     },
                 ],
                 markers: vec![],
+                bands: vec![],
             });
         }
     }

@@ -227,6 +227,7 @@ pub fn run(args: &StandArgs) -> Result<(), String> {
             .iter()
             .map(|p| (p.at_s, "push".to_string()))
             .collect(),
+        bands: vec![],
     };
     let panels = vec![
         panel("trunk x", "x [m]", 1),

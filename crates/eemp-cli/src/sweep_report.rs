@@ -197,6 +197,7 @@ fn draw_figures(dir: &Path, grid_speeds: &[f64], study: &Study) -> Result<Vec<Fi
             .map(|g| best_series(g, f))
             .collect(),
         markers: markers.clone(),
+        bands: vec![],
     };
     let panels6 = [
         panel("Cost of transport", "CoT [-]", |s| s.cot()),
@@ -270,6 +271,7 @@ fn draw_figures(dir: &Path, grid_speeds: &[f64], study: &Study) -> Result<Vec<Fi
                 y_label: "CoT [-]".into(),
                 series,
                 markers: unstable(g),
+                bands: vec![],
             }
         })
         .collect();

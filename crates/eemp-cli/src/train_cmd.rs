@@ -190,6 +190,7 @@ pub fn training_curves(csv_path: &Path, png: &Path, task: TaskKind) -> Result<()
             y_label: "return [-]".into(),
             series: vec![series("PPO", &ret)],
             markers: vec![],
+            bands: vec![],
         },
         Panel {
             title: "mean reward per policy step".into(),
@@ -197,6 +198,7 @@ pub fn training_curves(csv_path: &Path, png: &Path, task: TaskKind) -> Result<()
             y_label: "reward per step [-]".into(),
             series: vec![series("PPO", &step)],
             markers: vec![],
+            bands: vec![],
         },
         Panel {
             title: "mean episode length (last 100 episodes)".into(),
@@ -204,6 +206,7 @@ pub fn training_curves(csv_path: &Path, png: &Path, task: TaskKind) -> Result<()
             y_label: "policy steps [-]".into(),
             series: vec![series("PPO", &len)],
             markers: vec![],
+            bands: vec![],
         },
     ];
     line_panels(

@@ -95,6 +95,9 @@ pub struct WalkArgs {
     /// Robot description (default: the shipped A1, robots/a1.toml).
     #[arg(long)]
     pub robot: Option<PathBuf>,
+    /// Also write a video of the walk (animated GIF, 25 frames/s, rendered offscreen).
+    #[arg(long)]
+    pub video: Option<PathBuf>,
     /// Output folder.
     #[arg(long, default_value = "out/walk")]
     pub out: PathBuf,
@@ -258,6 +261,7 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
         ]);
         header.extend((0..3).map(|j| format!("{n}_tau{j}_nm")));
         header.extend((0..3).map(|j| format!("{n}_qd{j}_radps")));
+        header.extend((0..3).map(|j| format!("{n}_q{j}_rad")));
     }
     let mut trace =
         Trace::create(&args.out.join("trace.csv"), &header).map_err(|e| e.to_string())?;
@@ -267,6 +271,8 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
     let mut foot_z: [Vec<f64>; 4] = Default::default();
     let mut stance: Vec<[bool; 4]> = Vec::new();
     let mut i = 0usize;
+    let mut frames = Vec::new();
+    let video_every = (1.0 / (crate::video::FPS * robot.simulation.timestep_s)).round() as usize;
     let observer = |r: &eemp_sim::closed_loop::StepRecord| {
         let s = &r.state.body;
         let rpy = s.rpy();
@@ -306,6 +312,13 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
             ]);
             row.extend(r.output.torques[leg].iter());
             row.extend(qd[leg].iter());
+            row.extend(r.state.joints[leg].q.iter());
+        }
+        if args.video.is_some() && i.is_multiple_of(video_every) {
+            frames.push(crate::video::VideoFrame::of(
+                r.state,
+                [cmd.vx_mps, cmd.vy_mps],
+            ));
         }
         if i.is_multiple_of(trace_every) {
             if let Err(e) = trace.row(&row) {
@@ -420,6 +433,7 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
                 },
             ],
             markers: vec![],
+            bands: vec![],
         },
         Panel {
             title: "lateral velocity".into(),
@@ -438,6 +452,7 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
                 },
             ],
             markers: vec![],
+            bands: vec![],
         },
         Panel {
             title: "foot heights (flat intervals: all four feet in stance)".into(),
@@ -452,6 +467,7 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
                 })
                 .collect(),
             markers: vec![],
+            bands: vec![],
         },
     ];
     line_panels(
@@ -476,6 +492,19 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
         "wrote {}/summary.json, trace.csv, velocity_and_feet.png, gait.png",
         args.out.display()
     );
+    if let Some(video) = &args.video {
+        let friction = spec
+            .floor_friction
+            .unwrap_or(robot.simulation.floor_friction);
+        crate::video::write_gif(
+            &robot,
+            &spec.terrain.scene(friction),
+            &frames,
+            &method,
+            video,
+        )?;
+        println!("wrote {} ({} frames)", video.display(), frames.len());
+    }
     Ok(())
 }
 

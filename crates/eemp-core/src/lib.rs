@@ -31,5 +31,6 @@ pub mod metrics;
 pub mod planner;
 pub mod robot;
 pub mod stand_profile;
+pub mod teleop;
 
 pub use leg::{Leg, LegMap};

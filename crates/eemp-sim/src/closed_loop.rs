@@ -410,7 +410,7 @@ pub fn run_closed_loop(
     mut lp: ClosedLoop,
     controller: &mut dyn Controller,
     duration_s: f64,
-    command_at: impl Fn(f64) -> VelocityCommand,
+    mut command_at: impl FnMut(f64) -> VelocityCommand,
     mut observer: impl FnMut(&StepRecord),
 ) -> ClosedLoop {
     let steps = (duration_s / lp.sim().timestep_s()).round() as usize;

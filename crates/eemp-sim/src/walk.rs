@@ -341,6 +341,26 @@ pub fn run_walk_with(
     spec: &WalkSpec,
     start: &StartPose,
     controller: &mut dyn Controller,
+    observer: impl FnMut(&StepRecord),
+) -> Result<WalkRun, ScenarioError> {
+    run_walk_commanded(
+        robot,
+        spec,
+        start,
+        controller,
+        &mut |t| spec.profile.command_at(t),
+        observer,
+    )
+}
+
+/// [`run_walk_with`] with the command from `command_at(t)` at every step instead of the spec's
+/// profile (an operator: teleoperation, a script shaped like a joystick).
+pub fn run_walk_commanded(
+    robot: &RobotConfig,
+    spec: &WalkSpec,
+    start: &StartPose,
+    controller: &mut dyn Controller,
+    command_at: &mut dyn FnMut(f64) -> VelocityCommand,
     mut observer: impl FnMut(&StepRecord),
 ) -> Result<WalkRun, ScenarioError> {
     spec.validate()?;
@@ -366,41 +386,35 @@ pub fn run_walk_with(
         FallLimits::default(),
         &spec.state_source,
     )?;
-    let lp = run_closed_loop(
-        lp,
-        controller,
-        spec.duration_s,
-        |t| spec.profile.command_at(t),
-        |record| {
-            let t = record.state.time_s;
-            let stance = record.stance();
-            if let Some(prev) = was_down {
-                for leg in Leg::ALL {
-                    if record.loaded[leg] && !prev[leg] {
-                        touchdowns[leg] += 1;
-                    }
+    let lp = run_closed_loop(lp, controller, spec.duration_s, command_at, |record| {
+        let t = record.state.time_s;
+        let stance = record.stance();
+        if let Some(prev) = was_down {
+            for leg in Leg::ALL {
+                if record.loaded[leg] && !prev[leg] {
+                    touchdowns[leg] += 1;
                 }
             }
-            was_down = Some(record.loaded);
-            if t >= spec.metrics_start_s {
-                let cmd = record.command;
-                let qd = record.state.joints.map(|_, j| j.qd);
-                let jac =
-                    LegMap::from_fn(|leg| kin.foot_jacobian_body(leg, &record.state.joints[leg].q));
-                metrics.observe(
-                    dt,
-                    &record.state.body.p_world,
-                    &record.state.body.v_heading(),
-                    [cmd.vx_mps, cmd.vy_mps],
-                    &qd,
-                    &record.output.torques,
-                    &stance,
-                    &jac,
-                );
-            }
-            observer(record);
-        },
-    );
+        }
+        was_down = Some(record.loaded);
+        if t >= spec.metrics_start_s {
+            let cmd = record.command;
+            let qd = record.state.joints.map(|_, j| j.qd);
+            let jac =
+                LegMap::from_fn(|leg| kin.foot_jacobian_body(leg, &record.state.joints[leg].q));
+            metrics.observe(
+                dt,
+                &record.state.body.p_world,
+                &record.state.body.v_heading(),
+                [cmd.vx_mps, cmd.vy_mps],
+                &qd,
+                &record.output.torques,
+                &stance,
+                &jac,
+            );
+        }
+        observer(record);
+    });
     // EEMP counts the swings it started; a controller without a plan is counted by its
     // touchdowns (a foot becoming loaded, see `LOADED_FOOT_N`).
     let steps = controller.steps().unwrap_or(touchdowns);

@@ -1,0 +1,405 @@
+//! Many walks, one table: methods × scenarios × speeds × seeds, each a 20 s walk through the
+//! same scenario and metrics code (`eemp_sim::walk`), run on a thread pool and resumable.
+//!
+//! A suite folder holds `suite.toml` (the config, written on the first start; a later start
+//! with another config is refused) and `results.csv`: one row per finished run, appended and
+//! flushed as each ends. A kill can leave only a partial last line, which the next start
+//! drops; runs with a row are not run again. `eemp compare` and `eemp robustness` are this
+//! runner with their own configs and reports.
+
+use eemp_core::planner::params_table::ParamsTable;
+use eemp_core::planner::{Gait, PlannerConfig, PlannerParams, VelocityCommand};
+use eemp_core::robot::RobotConfig;
+use eemp_rl::config::TaskKind;
+use eemp_rl::controller::PolicyController;
+use eemp_rl::policy::Policy;
+use eemp_sim::scenario::Scenario;
+use eemp_sim::walk::{eemp_controller, run_walk_with, StartPose, WalkSpec};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+
+/// One method of a suite.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MethodConfig {
+    /// Its name in tables and figures.
+    pub name: String,
+    /// `eemp`, `model-free` or `imitation`.
+    pub kind: String,
+    /// EEMP: the gait (`trot`, `walk`, `free`) and its per-speed table.
+    #[serde(default)]
+    pub gait: Option<String>,
+    #[serde(default)]
+    pub table: Option<PathBuf>,
+    /// A learned method's policy file.
+    #[serde(default)]
+    pub policy: Option<PathBuf>,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ScenarioConfig {
+    pub name: String,
+    /// A scenario file (`scenarios/*.toml`); none: the flat floor.
+    #[serde(default)]
+    pub file: Option<PathBuf>,
+    /// Commanded forward speeds, m/s.
+    pub speeds_mps: Vec<f64>,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SuiteConfig {
+    #[serde(default = "default_duration")]
+    pub duration_s: f64,
+    /// Seeds of the start perturbation and sensor noise (0: start exactly at rest).
+    pub seeds: Vec<u64>,
+    /// `ground-truth` or `kf`.
+    #[serde(default = "default_estimator")]
+    pub estimator: String,
+    #[serde(rename = "method")]
+    pub methods: Vec<MethodConfig>,
+    #[serde(rename = "scenario")]
+    pub scenarios: Vec<ScenarioConfig>,
+}
+
+fn default_duration() -> f64 {
+    20.0
+}
+fn default_estimator() -> String {
+    "ground-truth".into()
+}
+
+/// One walk of a suite.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SuiteRun {
+    pub method: usize,
+    pub scenario: usize,
+    pub speed_mps: f64,
+    pub seed: u64,
+}
+
+/// One row of `results.csv`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SuiteRow {
+    pub run_id: String,
+    pub method: String,
+    pub scenario: String,
+    pub speed_mps: f64,
+    pub seed: u64,
+    pub fell: bool,
+    pub fell_at_s: Option<f64>,
+    pub vel_rmse_mps: Option<f64>,
+    pub cot: Option<f64>,
+    pub manipulability: Option<f64>,
+    pub distance_m: f64,
+    pub steps_total: u64,
+    pub wall_s: f64,
+    /// Why the run could not be done (a bad file, a simulator error); not a result.
+    pub error: Option<String>,
+}
+
+pub const RESULTS: &str = "results.csv";
+/// The columns of `results.csv` (the fields of [`SuiteRow`]).
+const HEADER: &str = "run_id,method,scenario,speed_mps,seed,fell,fell_at_s,vel_rmse_mps,cot,manipulability,distance_m,steps_total,wall_s,error";
+pub const CONFIG: &str = "suite.toml";
+
+impl SuiteConfig {
+    pub fn load(path: &Path) -> Result<Self, String> {
+        let c: SuiteConfig = eemp_core::config_error::load_toml(path).map_err(|e| e.to_string())?;
+        c.validate()
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+        Ok(c)
+    }
+
+    /// Checks values and that every file exists and loads (so no run fails on a typo later).
+    pub fn validate(&self) -> Result<(), String> {
+        if !(self.duration_s > 2.0 && self.duration_s <= 600.0) {
+            return Err(format!(
+                "duration_s = {} is out of range: allowed (2, 600] s",
+                self.duration_s
+            ));
+        }
+        if self.seeds.is_empty() || self.methods.is_empty() || self.scenarios.is_empty() {
+            return Err(
+                "a suite needs at least one seed, one [[method]] and one [[scenario]]".into(),
+            );
+        }
+        crate::state_source_arg::state_source(&self.estimator, false, 0, &RobotConfig::a1())?;
+        let mut names = std::collections::BTreeSet::new();
+        for (i, m) in self.methods.iter().enumerate() {
+            if !names.insert(&m.name) {
+                return Err(format!("method[{i}]: the name '{}' is used twice", m.name));
+            }
+            match m.kind.as_str() {
+                "eemp" => {
+                    let g: Gait = m.gait.as_deref().unwrap_or("trot").parse()?;
+                    let t = m
+                        .table
+                        .clone()
+                        .unwrap_or_else(|| format!("tables/a1_{g}.toml").into());
+                    ParamsTable::load(&t).map_err(|e| format!("method '{}': {e}", m.name))?;
+                }
+                k @ ("model-free" | "imitation") => {
+                    let p = m.policy.as_ref().ok_or_else(|| {
+                        format!("method '{}': kind {k} needs policy = FILE", m.name)
+                    })?;
+                    Policy::load(p, Some(k.parse()?))
+                        .map_err(|e| format!("method '{}': {e}", m.name))?;
+                }
+                other => {
+                    return Err(format!(
+                        "method '{}': unknown kind '{other}': allowed eemp, model-free, imitation",
+                        m.name
+                    ))
+                }
+            }
+        }
+        let mut names = std::collections::BTreeSet::new();
+        for s in &self.scenarios {
+            if !names.insert(&s.name) {
+                return Err(format!("scenario name '{}' is used twice", s.name));
+            }
+            if let Some(f) = &s.file {
+                Scenario::load(f).map_err(|e| format!("scenario '{}': {e}", s.name))?;
+            }
+            if s.speeds_mps.is_empty() {
+                return Err(format!("scenario '{}': speeds_mps is empty", s.name));
+            }
+            for v in &s.speeds_mps {
+                if !(v.is_finite() && (0.0..=1.5).contains(v)) {
+                    return Err(format!(
+                        "scenario '{}': speed {v} is out of range: allowed [0, 1.5] m/s",
+                        s.name
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    pub fn runs(&self) -> Vec<SuiteRun> {
+        let mut runs = Vec::new();
+        for (si, s) in self.scenarios.iter().enumerate() {
+            for &v in &s.speeds_mps {
+                for mi in 0..self.methods.len() {
+                    for &seed in &self.seeds {
+                        runs.push(SuiteRun {
+                            method: mi,
+                            scenario: si,
+                            speed_mps: v,
+                            seed,
+                        });
+                    }
+                }
+            }
+        }
+        runs
+    }
+
+    pub fn run_id(&self, r: &SuiteRun) -> String {
+        format!(
+            "{}|{}|{:.3}|{}",
+            self.methods[r.method].name, self.scenarios[r.scenario].name, r.speed_mps, r.seed
+        )
+    }
+}
+
+/// Runs one walk of the suite.
+pub fn simulate(
+    cfg: &SuiteConfig,
+    run: &SuiteRun,
+    robot: &RobotConfig,
+) -> Result<SuiteRow, String> {
+    let m = &cfg.methods[run.method];
+    let sc = &cfg.scenarios[run.scenario];
+    let gait: Gait = m.gait.as_deref().unwrap_or("trot").parse()?;
+    let mut spec = WalkSpec::constant(
+        PlannerConfig {
+            gait,
+            ..Default::default()
+        },
+        PlannerParams::default(),
+        VelocityCommand {
+            vx_mps: run.speed_mps,
+            ..Default::default()
+        },
+        cfg.duration_s,
+    );
+    spec.seed = run.seed;
+    spec.state_source =
+        crate::state_source_arg::state_source(&cfg.estimator, false, run.seed, robot)?;
+    if let Some(f) = &sc.file {
+        let s = Scenario::load(f).map_err(|e| e.to_string())?;
+        s.apply(&mut spec);
+        if let (Some(noise), eemp_sim::closed_loop::StateSource::Kf { sensors, .. }) =
+            (&s.sensors, &mut spec.state_source)
+        {
+            *sensors = noise.clone();
+        }
+    }
+    let t0 = std::time::Instant::now();
+    let walk = match m.kind.as_str() {
+        "eemp" => {
+            let t = m
+                .table
+                .clone()
+                .unwrap_or_else(|| format!("tables/a1_{gait}.toml").into());
+            spec.params_table = Some(ParamsTable::load(&t).map_err(|e| e.to_string())?);
+            let mut c = eemp_controller(robot, &spec).map_err(|e| e.to_string())?;
+            let start = StartPose::eemp(robot, &spec).map_err(|e| e.to_string())?;
+            run_walk_with(robot, &spec, &start, &mut c, |_| {})
+        }
+        k => {
+            let task: TaskKind = k.parse()?;
+            let p = Policy::load(m.policy.as_ref().ok_or("no policy")?, Some(task))?;
+            let mut c = PolicyController::new(p, robot, robot.simulation.timestep_s)?;
+            let start = StartPose::from_joints(robot, c.default_pose());
+            run_walk_with(robot, &spec, &start, &mut c, |_| {})
+        }
+    }
+    .map_err(|e| e.to_string())?;
+    Ok(SuiteRow {
+        run_id: cfg.run_id(run),
+        method: m.name.clone(),
+        scenario: sc.name.clone(),
+        speed_mps: run.speed_mps,
+        seed: run.seed,
+        fell: walk.stats.fell,
+        fell_at_s: walk.stats.fell_at_s,
+        vel_rmse_mps: walk.metrics.vel_rmse_mps,
+        cot: walk.metrics.cot,
+        manipulability: walk.metrics.manipulability,
+        distance_m: walk.metrics.distance_m,
+        steps_total: walk.steps.0.iter().sum::<usize>() as u64,
+        wall_s: t0.elapsed().as_secs_f64(),
+        error: None,
+    })
+}
+
+/// Reads the rows of a results file, dropping a partial last line and rows with an error.
+pub fn load_rows(path: &Path) -> Result<Vec<SuiteRow>, String> {
+    if !path.exists() {
+        return Ok(Vec::new());
+    }
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    let complete = match text.rfind('\n') {
+        Some(i) => &text[..=i],
+        None => "",
+    };
+    let mut rd = csv::Reader::from_reader(complete.as_bytes());
+    let mut rows = Vec::new();
+    for (k, r) in rd.deserialize::<SuiteRow>().enumerate() {
+        let r = r.map_err(|e| format!("{} row {}: {e}", path.display(), k + 2))?;
+        if r.error.is_none() {
+            rows.push(r);
+        }
+    }
+    Ok(rows)
+}
+
+/// Runs every run of `cfg` that `dir/results.csv` does not hold yet; returns all rows.
+pub fn run_suite(
+    cfg: &SuiteConfig,
+    dir: &Path,
+    threads: usize,
+    on_row: &(dyn Fn(&SuiteRow, usize, usize) + Sync),
+) -> Result<Vec<SuiteRow>, String> {
+    cfg.validate()?;
+    std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+    let text = toml::to_string(cfg).map_err(|e| e.to_string())?;
+    let stored = dir.join(CONFIG);
+    if stored.exists() {
+        let old: SuiteConfig =
+            eemp_core::config_error::load_toml(&stored).map_err(|e| e.to_string())?;
+        if &old != cfg {
+            return Err(format!(
+                "{} holds a suite with another config; use another --out (or delete it)",
+                dir.display()
+            ));
+        }
+    } else {
+        std::fs::write(&stored, &text)
+            .map_err(|e| format!("cannot write {}: {e}", stored.display()))?;
+    }
+    let path = dir.join(RESULTS);
+    let mut rows = load_rows(&path)?;
+    // Rewrite without a partial line or failed rows, then append.
+    let mut w = csv::Writer::from_writer(Vec::new());
+    for r in &rows {
+        w.serialize(r).map_err(|e| e.to_string())?;
+    }
+    let mut body = w.into_inner().map_err(|e| e.to_string())?;
+    if rows.is_empty() {
+        body = format!("{HEADER}\n").into_bytes();
+    }
+    eemp_study::store::write_atomic(&path, &body).map_err(|e| e.to_string())?;
+    let done: std::collections::BTreeSet<String> = rows.iter().map(|r| r.run_id.clone()).collect();
+    let todo: Vec<SuiteRun> = cfg
+        .runs()
+        .into_iter()
+        .filter(|r| !done.contains(&cfg.run_id(r)))
+        .collect();
+    let total = cfg.runs().len();
+    let file = Mutex::new(
+        std::fs::OpenOptions::new()
+            .append(true)
+            .open(&path)
+            .map_err(|e| format!("cannot append to {}: {e}", path.display()))?,
+    );
+    let finished = Mutex::new(rows.len());
+    let robot = RobotConfig::a1();
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads.max(1))
+        .build()
+        .map_err(|e| e.to_string())?;
+    let new_rows: Vec<Result<SuiteRow, String>> = pool.install(|| {
+        todo.par_iter()
+            .map(|run| {
+                let row = simulate(cfg, run, &robot).unwrap_or_else(|e| SuiteRow {
+                    run_id: cfg.run_id(run),
+                    method: cfg.methods[run.method].name.clone(),
+                    scenario: cfg.scenarios[run.scenario].name.clone(),
+                    speed_mps: run.speed_mps,
+                    seed: run.seed,
+                    fell: false,
+                    fell_at_s: None,
+                    vel_rmse_mps: None,
+                    cot: None,
+                    manipulability: None,
+                    distance_m: 0.0,
+                    steps_total: 0,
+                    wall_s: 0.0,
+                    error: Some(e),
+                });
+                let mut w = csv::WriterBuilder::new()
+                    .has_headers(false)
+                    .from_writer(Vec::new());
+                w.serialize(&row).map_err(|e| e.to_string())?;
+                let line = w.into_inner().map_err(|e| e.to_string())?;
+                {
+                    // One write per row: a kill leaves at most a partial last line.
+                    let mut f = file.lock().expect("not poisoned");
+                    f.write_all(&line).map_err(|e| e.to_string())?;
+                    f.flush().map_err(|e| e.to_string())?;
+                }
+                let mut n = finished.lock().expect("not poisoned");
+                *n += 1;
+                on_row(&row, *n, total);
+                Ok(row)
+            })
+            .collect()
+    });
+    for r in new_rows {
+        let r = r?;
+        if let Some(e) = &r.error {
+            return Err(format!("run {} could not be done: {e}", r.run_id));
+        }
+        rows.push(r);
+    }
+    Ok(rows)
+}

@@ -1,0 +1,581 @@
+//! `eemp compare` (the paper's Fig. 7 and Fig. 9: methods against speed) and `eemp robustness`
+//! (methods across scenarios): suites of walks (`crate::suite`) and their reports.
+
+use crate::plots::{grouped_bars, line_panels, Band, BarPanel, Panel, Series};
+use crate::suite::{run_suite, SuiteConfig, SuiteRow};
+use indicatif::{ProgressBar, ProgressStyle};
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+#[derive(clap::Args, Debug)]
+pub struct SuiteArgs {
+    /// The suite (TOML: duration_s, seeds, estimator, [[method]], [[scenario]]); default:
+    /// suites/compare.toml or suites/robustness.toml.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Output folder: suite.toml, results.csv (resumable), figures, report.md, report.html.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+}
+
+/// Mean, min and max over the runs that did not fall; falls and runs.
+#[derive(Clone, Debug, Default)]
+pub struct Cell {
+    pub runs: usize,
+    pub falls: usize,
+    pub cot: Stat,
+    pub manipulability: Stat,
+    pub vel_rmse: Stat,
+}
+
+#[derive(Clone, Debug, Default)]
+pub struct Stat {
+    values: Vec<f64>,
+}
+
+impl Stat {
+    fn push(&mut self, v: Option<f64>) {
+        if let Some(v) = v.filter(|v| v.is_finite()) {
+            self.values.push(v);
+        }
+    }
+    pub fn mean(&self) -> f64 {
+        if self.values.is_empty() {
+            f64::NAN
+        } else {
+            self.values.iter().sum::<f64>() / self.values.len() as f64
+        }
+    }
+    pub fn min(&self) -> f64 {
+        self.values.iter().copied().fold(f64::NAN, f64::min)
+    }
+    pub fn max(&self) -> f64 {
+        self.values.iter().copied().fold(f64::NAN, f64::max)
+    }
+}
+
+/// Cells keyed by (method, scenario, speed in mm/s).
+pub fn aggregate(rows: &[SuiteRow]) -> BTreeMap<(String, String, i64), Cell> {
+    let mut m: BTreeMap<(String, String, i64), Cell> = BTreeMap::new();
+    for r in rows {
+        let key = (
+            r.method.clone(),
+            r.scenario.clone(),
+            (r.speed_mps * 1000.0).round() as i64,
+        );
+        let c = m.entry(key).or_default();
+        c.runs += 1;
+        if r.fell {
+            c.falls += 1;
+            continue;
+        }
+        c.cot.push(r.cot);
+        c.manipulability.push(r.manipulability);
+        c.vel_rmse.push(r.vel_rmse_mps);
+    }
+    m
+}
+
+fn threads(args: &SuiteArgs) -> usize {
+    args.threads.unwrap_or_else(|| {
+        std::thread::available_parallelism()
+            .map(|n| n.get())
+            .unwrap_or(1)
+    })
+}
+
+fn run(args: &SuiteArgs, default: &str) -> Result<(SuiteConfig, Vec<SuiteRow>), String> {
+    if args.threads == Some(0) {
+        return Err("--threads 0 is out of range: allowed ≥ 1".into());
+    }
+    let path = args
+        .config
+        .clone()
+        .unwrap_or_else(|| PathBuf::from(default));
+    let cfg = SuiteConfig::load(&path)?;
+    let total = cfg.runs().len();
+    let bar = ProgressBar::new(total as u64);
+    bar.set_style(
+        ProgressStyle::with_template("{bar:40} {pos}/{len} runs, {elapsed} elapsed, eta {eta}")
+            .expect("valid template"),
+    );
+    let t0 = std::time::Instant::now();
+    let rows = run_suite(&cfg, &args.out, threads(args), &|_, n, _| {
+        bar.set_position(n as u64)
+    })?;
+    bar.finish_and_clear();
+    eprintln!(
+        "{} runs in {}, {:.0} s this session",
+        rows.len(),
+        args.out.display(),
+        t0.elapsed().as_secs_f64()
+    );
+    Ok((cfg, rows))
+}
+
+fn f3(v: f64) -> String {
+    if v.is_finite() {
+        format!("{v:.3}")
+    } else {
+        "–".into()
+    }
+}
+
+fn spread(s: &Stat) -> String {
+    if s.values.len() > 1 {
+        format!("{} ({}–{})", f3(s.mean()), f3(s.min()), f3(s.max()))
+    } else {
+        f3(s.mean())
+    }
+}
+
+/// A plain HTML page of a Markdown report: headings, tables, images, paragraphs.
+fn html_of(md: &str, title: &str) -> String {
+    let mut h = format!(
+        "<!doctype html><html><head><meta charset=\"utf-8\"><title>{title}</title><style>\
+         body{{font-family:sans-serif;max-width:1200px;margin:2em auto}}table{{border-collapse:collapse}}\
+         td,th{{border:1px solid #ccc;padding:3px 8px}}img{{max-width:100%}}</style></head><body>\n"
+    );
+    let mut in_table = false;
+    for line in md.lines() {
+        let esc = line
+            .replace('&', "&amp;")
+            .replace('<', "&lt;")
+            .replace('>', "&gt;");
+        if line.starts_with('|') {
+            if line.contains("---") {
+                continue;
+            }
+            if !in_table {
+                h.push_str("<table>\n");
+                in_table = true;
+            }
+            let cells: Vec<&str> = esc.trim_matches('|').split('|').collect();
+            h.push_str("<tr>");
+            for c in cells {
+                let _ = write!(h, "<td>{}</td>", c.trim());
+            }
+            h.push_str("</tr>\n");
+            continue;
+        }
+        if in_table {
+            h.push_str("</table>\n");
+            in_table = false;
+        }
+        if let Some(t) = line.strip_prefix("## ") {
+            let _ = writeln!(h, "<h2>{t}</h2>");
+        } else if let Some(t) = line.strip_prefix("# ") {
+            let _ = writeln!(h, "<h1>{t}</h1>");
+        } else if let Some(rest) = line.strip_prefix("![") {
+            if let Some((alt, src)) = rest.split_once("](") {
+                let _ = writeln!(
+                    h,
+                    "<p><img alt=\"{alt}\" src=\"{}\"></p>",
+                    src.trim_end_matches(')')
+                );
+            }
+        } else if !line.trim().is_empty() {
+            let _ = writeln!(h, "<p>{esc}</p>");
+        }
+    }
+    if in_table {
+        h.push_str("</table>\n");
+    }
+    h.push_str("</body></html>\n");
+    h
+}
+
+fn write_report(dir: &Path, md: &str, title: &str) -> Result<(), String> {
+    std::fs::write(dir.join("report.md"), md).map_err(|e| e.to_string())?;
+    std::fs::write(dir.join("report.html"), html_of(md, title)).map_err(|e| e.to_string())
+}
+
+/// Training curves of the suite's learned methods: `<policy>.train.csv` beside each policy.
+fn training_curves(cfg: &SuiteConfig, png: &Path) -> Result<Vec<String>, String> {
+    let mut series = Vec::new();
+    let mut found = Vec::new();
+    for m in cfg.methods.iter().filter(|m| m.kind != "eemp") {
+        let Some(p) = &m.policy else { continue };
+        let csv_path = p.with_extension("train.csv");
+        let Ok(mut rd) = csv::Reader::from_path(&csv_path) else {
+            continue;
+        };
+        let h = rd.headers().map_err(|e| e.to_string())?.clone();
+        let col = |n: &str| h.iter().position(|x| x == n);
+        let (Some(xs), Some(ys)) = (col("env_steps"), col("mean_step_reward")) else {
+            continue;
+        };
+        let (mut x, mut y) = (Vec::new(), Vec::new());
+        for r in rd.records().flatten() {
+            if let (Some(a), Some(b)) = (r.get(xs), r.get(ys)) {
+                if let (Ok(a), Ok(b)) = (a.parse::<f64>(), b.parse::<f64>()) {
+                    x.push(a / 1e6);
+                    y.push(b);
+                }
+            }
+        }
+        found.push(format!("{} ({})", m.name, csv_path.display()));
+        series.push(Series {
+            label: m.name.clone(),
+            x,
+            y,
+        });
+    }
+    line_panels(
+        png,
+        "Training curves (the paper's Fig. 9 analogue)",
+        &[Panel {
+            title: "mean reward per policy step (each task's own reward)".into(),
+            x_label: "environment steps [millions]".into(),
+            y_label: "mean step reward [-]".into(),
+            series,
+            markers: vec![],
+            bands: vec![],
+        }],
+    )
+    .map_err(|e| e.to_string())?;
+    Ok(found)
+}
+
+pub fn compare(args: &SuiteArgs) -> Result<(), String> {
+    let (cfg, rows) = run(args, "suites/compare.toml")?;
+    let cells = aggregate(&rows);
+    let scen = cfg.scenarios[0].name.clone();
+    let speeds: Vec<f64> = cfg.scenarios[0].speeds_mps.clone();
+    let key = |m: &str, v: f64| (m.to_string(), scen.clone(), (v * 1000.0).round() as i64);
+    // Fig. 7: three panels against speed, one line per method, min–max over seeds shaded.
+    let metric = |name: &str, unit: &str, f: fn(&Cell) -> &Stat| {
+        let mut series = Vec::new();
+        let mut bands = Vec::new();
+        for (i, m) in cfg.methods.iter().enumerate() {
+            let cs: Vec<Option<&Cell>> = speeds
+                .iter()
+                .map(|&v| cells.get(&key(&m.name, v)))
+                .collect();
+            let stat = |g: fn(&Stat) -> f64| -> Vec<f64> {
+                cs.iter()
+                    .map(|c| c.map(|c| g(f(c))).unwrap_or(f64::NAN))
+                    .collect()
+            };
+            series.push(Series {
+                label: m.name.clone(),
+                x: speeds.clone(),
+                y: stat(Stat::mean),
+            });
+            bands.push(Band {
+                of: i,
+                lo: stat(Stat::min),
+                hi: stat(Stat::max),
+            });
+        }
+        Panel {
+            title: format!("{name} (mean of the seeds that did not fall, min–max shaded)"),
+            x_label: "commanded speed [m/s]".into(),
+            y_label: format!("{name} [{unit}]"),
+            series,
+            markers: vec![],
+            bands,
+        }
+    };
+    let panels = [
+        metric("CoT", "-", |c| &c.cot),
+        metric("manipulability", "-", |c| &c.manipulability),
+        metric("velocity RMSE", "m/s", |c| &c.vel_rmse),
+    ];
+    line_panels(
+        &args.out.join("fig7.png"),
+        "Methods against speed (the paper's Fig. 7 analogue)",
+        &panels,
+    )
+    .map_err(|e| e.to_string())?;
+    let curves = training_curves(&cfg, &args.out.join("fig9.png"))?;
+
+    let mut md = String::new();
+    let _ = writeln!(md, "# Four-method comparison (the paper's Fig. 7)\n");
+    let _ = writeln!(
+        md,
+        "{} runs: {} methods × {} speeds × {} seeds, {} s each, estimator `{}`, flat floor. \
+         Regenerate: `eemp compare --config {} --out DIR` (resumable: a killed run continues \
+         where it stopped). Means are over the seeds that did not fall; the min–max over seeds \
+         is in brackets.\n",
+        rows.len(),
+        cfg.methods.len(),
+        speeds.len(),
+        cfg.seeds.len(),
+        cfg.duration_s,
+        cfg.estimator,
+        args.config
+            .as_deref()
+            .unwrap_or(Path::new("suites/compare.toml"))
+            .display()
+    );
+    let _ = writeln!(
+        md,
+        "![Fig. 7 analogue](fig7.png)\n\n![Fig. 9 analogue](fig9.png)\n"
+    );
+    let _ = writeln!(
+        md,
+        "Training logs: {}.\n",
+        if curves.is_empty() {
+            "none found".into()
+        } else {
+            curves.join(", ")
+        }
+    );
+    let _ = writeln!(md, "## Per speed\n");
+    let _ = writeln!(
+        md,
+        "| speed m/s | method | falls | CoT | manipulability | vel RMSE m/s |"
+    );
+    let _ = writeln!(md, "|---|---|---|---|---|---|");
+    for &v in &speeds {
+        for m in &cfg.methods {
+            if let Some(c) = cells.get(&key(&m.name, v)) {
+                let _ = writeln!(
+                    md,
+                    "| {v:.2} | {} | {}/{} | {} | {} | {} |",
+                    m.name,
+                    c.falls,
+                    c.runs,
+                    spread(&c.cot),
+                    spread(&c.manipulability),
+                    spread(&c.vel_rmse)
+                );
+            }
+        }
+    }
+    // The paper's claims against what was measured.
+    let by_kind = |k: &str| {
+        cfg.methods
+            .iter()
+            .find(|m| m.kind == k)
+            .map(|m| m.name.clone())
+    };
+    let eemp = by_kind("eemp");
+    let mf = by_kind("model-free");
+    let im = by_kind("imitation");
+    let low: Vec<f64> = speeds
+        .iter()
+        .copied()
+        .filter(|v| *v <= 0.6 + 1e-9)
+        .collect();
+    let mean_of = |m: &str, v: f64, f: fn(&Cell) -> &Stat| {
+        cells
+            .get(&key(m, v))
+            .map(|c| f(c).mean())
+            .unwrap_or(f64::NAN)
+    };
+    let _ = writeln!(md, "\n## The paper's claims, measured\n");
+    let _ = writeln!(md, "| claim (paper) | measured here |");
+    let _ = writeln!(md, "|---|---|");
+    if let Some(e) = &eemp {
+        let mut best = [0usize; 3];
+        for &v in &low {
+            let others: Vec<&String> = cfg
+                .methods
+                .iter()
+                .map(|m| &m.name)
+                .filter(|n| *n != e)
+                .collect();
+            // A speed at which EEMP fell in any seed is not a win.
+            let fell = cells.get(&key(e, v)).map(|c| c.falls > 0).unwrap_or(true);
+            let wins = |f: fn(&Cell) -> &Stat, higher: bool| {
+                let me = mean_of(e, v, f);
+                !fell
+                    && me.is_finite()
+                    && others.iter().all(|o| {
+                        let x = mean_of(o, v, f);
+                        !x.is_finite() || if higher { me >= x } else { me <= x }
+                    })
+            };
+            best[0] += wins(|c| &c.cot, false) as usize;
+            best[1] += wins(|c| &c.manipulability, true) as usize;
+            best[2] += wins(|c| &c.vel_rmse, false) as usize;
+        }
+        let (falls, runs) = low.iter().fold((0, 0), |(f, n), &v| {
+            let c = cells.get(&key(e, v));
+            (
+                f + c.map(|c| c.falls).unwrap_or(0),
+                n + c.map(|c| c.runs).unwrap_or(0),
+            )
+        });
+        let _ = writeln!(
+            md,
+            "| {e} best at ≤ 0.6 m/s in CoT, manipulability and velocity tracking | best CoT at {} of {} speeds, best manipulability at {}, best tracking at {} (a speed with a fall counts as lost; it fell in {falls} of its {runs} runs there) |",
+            best[0], low.len(), best[1], best[2]
+        );
+        if let Some(mf) = &mf {
+            let imp: Vec<f64> = low
+                .iter()
+                .map(|&v| 1.0 - mean_of(e, v, |c| &c.cot) / mean_of(mf, v, |c| &c.cot))
+                .filter(|x| x.is_finite())
+                .collect();
+            let mean = imp.iter().sum::<f64>() / imp.len().max(1) as f64;
+            let _ = writeln!(
+                md,
+                "| CoT improvement of EEMP over model-free RL at ≤ 0.6 m/s: 50.4 % | {:.1} % (mean over {} speeds of 1 − CoT_EEMP / CoT_model-free) |",
+                100.0 * mean,
+                imp.len()
+            );
+        }
+    }
+    let _ = writeln!(
+        md,
+        "| EEMP-RL ≥ EEMP-Analytical | not measured: EEMP-RL is not built yet (issue \"Learned controllers, part 3\") |"
+    );
+    if let (Some(mf), Some(im)) = (&mf, &im) {
+        let mut worse = [0usize; 3];
+        for &v in &speeds {
+            worse[0] += (mean_of(im, v, |c| &c.cot) > mean_of(mf, v, |c| &c.cot)) as usize;
+            worse[1] += (mean_of(im, v, |c| &c.manipulability)
+                < mean_of(mf, v, |c| &c.manipulability)) as usize;
+            worse[2] +=
+                (mean_of(im, v, |c| &c.vel_rmse) > mean_of(mf, v, |c| &c.vel_rmse)) as usize;
+        }
+        let _ = writeln!(
+            md,
+            "| motion imitation below model-free RL at nearly all speeds | imitation worse in CoT at {} of {} speeds, in manipulability at {}, in tracking at {} |",
+            worse[0], speeds.len(), worse[1], worse[2]
+        );
+    }
+    write_report(&args.out, &md, "eemp compare")?;
+    println!(
+        "wrote {}/report.md, report.html, fig7.png, fig9.png, results.csv",
+        args.out.display()
+    );
+    Ok(())
+}
+
+pub fn robustness(args: &SuiteArgs) -> Result<(), String> {
+    let (cfg, rows) = run(args, "suites/robustness.toml")?;
+    let cells = aggregate(&rows);
+    let methods: Vec<String> = cfg.methods.iter().map(|m| m.name.clone()).collect();
+    // One category per scenario and speed.
+    let mut cats: Vec<(String, f64)> = Vec::new();
+    for s in &cfg.scenarios {
+        for &v in &s.speeds_mps {
+            cats.push((s.name.clone(), v));
+        }
+    }
+    let names: Vec<String> = cats
+        .iter()
+        .map(|(s, v)| {
+            if cfg
+                .scenarios
+                .iter()
+                .find(|x| &x.name == s)
+                .map(|x| x.speeds_mps.len())
+                .unwrap_or(1)
+                > 1
+            {
+                format!("{s} {v}")
+            } else {
+                s.clone()
+            }
+        })
+        .collect();
+    let cell = |m: &str, (s, v): &(String, f64)| {
+        cells.get(&(m.to_string(), s.clone(), (v * 1000.0).round() as i64))
+    };
+    let values = |f: &dyn Fn(&Cell) -> f64| -> Vec<Vec<f64>> {
+        methods
+            .iter()
+            .map(|m| {
+                cats.iter()
+                    .map(|c| cell(m, c).map(f).unwrap_or(f64::NAN))
+                    .collect()
+            })
+            .collect()
+    };
+    let panels = [
+        BarPanel {
+            title: "success rate (20 s without a fall)".into(),
+            y_label: "runs without a fall [%]".into(),
+            values: values(&|c| 100.0 * (c.runs - c.falls) as f64 / c.runs.max(1) as f64),
+        },
+        BarPanel {
+            title: "CoT (mean over runs without a fall)".into(),
+            y_label: "CoT [-]".into(),
+            values: values(&|c| c.cot.mean()),
+        },
+        BarPanel {
+            title: "velocity RMSE (mean over runs without a fall)".into(),
+            y_label: "velocity RMSE [m/s]".into(),
+            values: values(&|c| c.vel_rmse.mean()),
+        },
+    ];
+    grouped_bars(
+        &args.out.join("robustness.png"),
+        "Robustness: methods across scenarios",
+        &names,
+        &methods,
+        &panels,
+    )
+    .map_err(|e| e.to_string())?;
+    let mut md = String::new();
+    let _ = writeln!(md, "# Robustness suite\n");
+    let _ = writeln!(
+        md,
+        "{} runs: {} methods × {} scenario–speed cases × {} seeds, {} s each, estimator `{}`. \
+         Regenerate: `eemp robustness --config {} --out DIR` (resumable). A run succeeds if it \
+         walks the whole time without a fall; CoT and velocity RMSE are means over the \
+         successful runs (min–max over seeds in brackets).\n",
+        rows.len(),
+        methods.len(),
+        cats.len(),
+        cfg.seeds.len(),
+        cfg.duration_s,
+        cfg.estimator,
+        args.config
+            .as_deref()
+            .unwrap_or(Path::new("suites/robustness.toml"))
+            .display()
+    );
+    let _ = writeln!(md, "![robustness](robustness.png)\n");
+    let _ = writeln!(
+        md,
+        "| scenario | speed m/s | method | success | CoT | vel RMSE m/s | falls at s |"
+    );
+    let _ = writeln!(md, "|---|---|---|---|---|---|---|");
+    for c in &cats {
+        for m in &methods {
+            if let Some(x) = cell(m, c) {
+                let falls: Vec<String> = rows
+                    .iter()
+                    .filter(|r| {
+                        &r.method == m
+                            && r.scenario == c.0
+                            && (r.speed_mps - c.1).abs() < 1e-9
+                            && r.fell
+                    })
+                    .filter_map(|r| r.fell_at_s.map(|t| format!("{t:.1}")))
+                    .collect();
+                let _ = writeln!(
+                    md,
+                    "| {} | {:.2} | {m} | {}/{} | {} | {} | {} |",
+                    c.0,
+                    c.1,
+                    x.runs - x.falls,
+                    x.runs,
+                    spread(&x.cot),
+                    spread(&x.vel_rmse),
+                    if falls.is_empty() {
+                        "–".into()
+                    } else {
+                        falls.join(", ")
+                    }
+                );
+            }
+        }
+    }
+    write_report(&args.out, &md, "eemp robustness")?;
+    println!(
+        "wrote {}/report.md, report.html, robustness.png, results.csv",
+        args.out.display()
+    );
+    Ok(())
+}
