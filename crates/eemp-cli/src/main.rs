@@ -62,6 +62,9 @@ enum BenchCommand {
         /// Solves per case.
         #[arg(long, default_value_t = 300)]
         solves: usize,
+        /// MPC horizon (steps of the MPC's dt).
+        #[arg(long, default_value_t = eemp_core::convex_mpc::MpcConfig::default().horizon)]
+        horizon: usize,
     },
     /// Time one Kalman-filter update against a bare MuJoCo step, in one run.
     Estimator {
@@ -103,17 +106,22 @@ fn main() {
         Command::Compare(args) => suite_cmd::compare(&args),
         Command::Robustness(args) => suite_cmd::robustness(&args),
         Command::Bench {
-            what: BenchCommand::Mpc { solves },
-        } => {
+            what: BenchCommand::Mpc { solves, horizon },
+        } => (|| {
+            if !(2..=30).contains(&horizon) {
+                return Err(format!(
+                    "--horizon {horizon} is out of range: allowed [2, 30]"
+                ));
+            }
             let report = eemp_cli::bench::bench_mpc(&eemp_cli::bench::MpcBenchOptions {
-                horizon: 10,
+                horizon,
                 solves,
                 mujoco_steps: 20000,
             });
             println!("{}", report.table());
             println!("{}", report.json_line());
             Ok(())
-        }
+        })(),
         Command::Bench {
             what:
                 BenchCommand::Rl {

@@ -85,6 +85,9 @@ pub struct WalkArgs {
     /// floor's. Default: `MpcConfig`'s 0.6.
     #[arg(long)]
     pub mpc_friction: Option<f64>,
+    /// MPC horizon, steps of its dt (default: MpcConfig's 10).
+    #[arg(long)]
+    pub mpc_horizon: Option<usize>,
     /// Time between MPC solves, s (a stance change also triggers a solve).
     #[arg(long, default_value_t = eemp_core::controller::ControllerConfig::default().mpc_period_s)]
     pub mpc_period: f64,
@@ -189,6 +192,9 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
         spec.profile = load_toml::<VelocityProfile>(p).map_err(|e| e.to_string())?;
     }
     spec.controller.mpc_period_s = args.mpc_period;
+    if let Some(h) = args.mpc_horizon {
+        spec.controller.mpc.horizon = h;
+    }
     if let Some(mu) = args.mpc_friction {
         spec.controller.mpc.friction_coefficient = mu;
     }

@@ -29,8 +29,8 @@ use std::collections::BTreeMap;
 use std::net::SocketAddr;
 use std::time::{Duration, Instant};
 
-/// A torque added to one joint's command for one cycle (fault injection: the safety layer
-/// must catch it).
+/// A torque added to one joint's command for one cycle, the first with a state at or after
+/// `at_s` (fault injection: the safety layer must catch it).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TorqueSpike {
     pub at_s: f64,
@@ -180,6 +180,7 @@ pub fn run_hw(
     let mut cmd = torque_command(&last_torques);
     let mut vel_cmd = VelocityCommand::default();
     let mut cycle = 0usize;
+    let mut spiked = false;
     loop {
         let now = wall0.elapsed().as_secs_f64();
         if now >= opts.duration_s {
@@ -271,8 +272,10 @@ pub fn run_hw(
             last_torques = out.torques;
             cmd = torque_command(&out.torques);
             if let Some(sp) = opts.torque_spike {
-                if (t - sp.at_s).abs() < period / 2.0 {
+                // Once, at the first controller step at or after its time (states can be lost).
+                if !spiked && t >= sp.at_s {
                     cmd[sp.leg][sp.joint].tau += sp.nm;
+                    spiked = true;
                 }
             }
             estimate = Some(est);
