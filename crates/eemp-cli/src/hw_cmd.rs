@@ -90,7 +90,7 @@ pub struct HwArgs {
     /// Fault injection: add this torque (N·m) to FL calf's command for one cycle at --spike-at.
     #[arg(long, requires = "spike_at")]
     pub spike_nm: Option<f64>,
-    #[arg(long)]
+    #[arg(long, requires = "spike_nm")]
     pub spike_at: Option<f64>,
     #[command(flatten)]
     pub faults: FaultArgs,

@@ -129,6 +129,24 @@ impl SuiteConfig {
             );
         }
         crate::state_source_arg::state_source(&self.estimator, false, 0, &RobotConfig::a1())?;
+        // Run ids must be unique (resume finds runs by id).
+        let mut seeds = self.seeds.clone();
+        seeds.sort_unstable();
+        if seeds.windows(2).any(|w| w[0] == w[1]) {
+            return Err(format!("seeds {:?} repeat a seed", self.seeds));
+        }
+        for name in self
+            .methods
+            .iter()
+            .map(|m| &m.name)
+            .chain(self.scenarios.iter().map(|s| &s.name))
+        {
+            if name.is_empty() || name.contains('|') {
+                return Err(format!(
+                    "name '{name}' is empty or holds '|' (the run-id separator)"
+                ));
+            }
+        }
         let mut names = std::collections::BTreeSet::new();
         for (i, m) in self.methods.iter().enumerate() {
             if !names.insert(&m.name) {
@@ -168,6 +186,18 @@ impl SuiteConfig {
             }
             if s.speeds_mps.is_empty() {
                 return Err(format!("scenario '{}': speeds_mps is empty", s.name));
+            }
+            let mut mm: Vec<i64> = s
+                .speeds_mps
+                .iter()
+                .map(|v| (v * 1000.0).round() as i64)
+                .collect();
+            mm.sort_unstable();
+            if mm.windows(2).any(|w| w[0] == w[1]) {
+                return Err(format!(
+                    "scenario '{}': speeds {:?} repeat a speed (to the mm/s)",
+                    s.name, s.speeds_mps
+                ));
             }
             for v in &s.speeds_mps {
                 if !(v.is_finite() && (0.0..=1.5).contains(v)) {

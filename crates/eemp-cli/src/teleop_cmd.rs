@@ -6,7 +6,9 @@
 use crate::plots::{line_panels, Panel, Series};
 use eemp_core::planner::{PlannerConfig, PlannerParams, VelocityCommand};
 use eemp_core::robot::RobotConfig;
-use eemp_core::teleop::{key_step, CommandShaper, JsEvent, PadMapping, PadState, TeleopConfig};
+use eemp_core::teleop::{
+    key_step, CommandShaper, JsEvent, OperatorInput, PadMapping, PadState, TeleopConfig,
+};
 use eemp_sim::walk::{eemp_controller, run_walk_commanded, StartPose, VelocityProfile, WalkSpec};
 use std::io::Read;
 use std::path::PathBuf;
@@ -50,7 +52,17 @@ pub struct TeleopArgs {
 /// Where the wish comes from.
 enum Source {
     Script(VelocityProfile),
+    /// Filled by a device thread (joystick, keyboard).
     Shared(Arc<Mutex<(VelocityCommand, bool)>>),
+}
+
+impl OperatorInput for Source {
+    fn wish(&mut self, t_s: f64) -> (VelocityCommand, bool) {
+        match self {
+            Source::Script(p) => (p.command_at(t_s), false),
+            Source::Shared(s) => *s.lock().expect("not poisoned"),
+        }
+    }
 }
 
 fn spawn_joystick(path: &PathBuf, cfg: TeleopConfig) -> Result<Source, String> {
@@ -148,7 +160,7 @@ pub fn run(args: &TeleopArgs) -> Result<(), String> {
     spec.metrics_start_s = 0.0;
     let mut controller = eemp_controller(&robot, &spec).map_err(|e| e.to_string())?;
     let start = StartPose::eemp(&robot, &spec).map_err(|e| e.to_string())?;
-    let source = match (&script, &args.joystick) {
+    let mut source = match (&script, &args.joystick) {
         (Some(p), _) => Source::Script(p.clone()),
         (None, Some(dev)) => spawn_joystick(dev, cfg.clone())?,
         (None, None) => spawn_keyboard()?,
@@ -160,10 +172,7 @@ pub fn run(args: &TeleopArgs) -> Result<(), String> {
     let realtime = !args.headless;
     let mut stopped_at: Option<f64> = None;
     let mut command_at = |t: f64| {
-        let (wish, stop) = match &source {
-            Source::Script(p) => (p.command_at(t), false),
-            Source::Shared(s) => *s.lock().expect("not poisoned"),
-        };
+        let (wish, stop) = source.wish(t);
         if stop && stopped_at.is_none() {
             stopped_at = Some(t);
         }

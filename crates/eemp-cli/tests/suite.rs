@@ -105,6 +105,15 @@ fn bad_suite_configs_are_refused_naming_the_value() {
     c.methods[1].name = "EEMP trot".into();
     assert!(c.validate().unwrap_err().contains("used twice"));
     let mut c = config();
+    c.seeds = vec![1, 1];
+    assert!(c.validate().unwrap_err().contains("repeat a seed"));
+    let mut c = config();
+    c.scenarios[0].speeds_mps = vec![0.3, 0.3001];
+    assert!(c.validate().unwrap_err().contains("repeat a speed"));
+    let mut c = config();
+    c.methods[0].name = "a|b".into();
+    assert!(c.validate().unwrap_err().contains("'|'"));
+    let mut c = config();
     c.estimator = "oracle".into();
     assert!(c.validate().unwrap_err().contains("oracle"));
 }

@@ -82,6 +82,32 @@ impl Sticks {
     }
 }
 
+/// Where an operator's wish comes from (a gamepad, the keyboard, a script, a test): the
+/// command wished at time `t_s`, and whether the operator asked to stop.
+pub trait OperatorInput {
+    fn wish(&mut self, t_s: f64) -> (VelocityCommand, bool);
+}
+
+/// A gamepad through its events (tests feed them; the binary reads a joystick device).
+#[derive(Clone, Debug, Default)]
+pub struct Gamepad {
+    pub state: PadState,
+    pub mapping: PadMapping,
+    pub config: TeleopConfig,
+}
+
+impl Gamepad {
+    pub fn event(&mut self, e: &JsEvent) {
+        self.state.apply(e, &self.mapping);
+    }
+}
+
+impl OperatorInput for Gamepad {
+    fn wish(&mut self, _t_s: f64) -> (VelocityCommand, bool) {
+        (self.state.sticks.desired(&self.config), self.state.stop)
+    }
+}
+
 /// Moves the command toward the operator's wish within the slew limits.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CommandShaper {
@@ -160,7 +186,7 @@ impl JsEvent {
 }
 
 /// Axis and button numbers of a gamepad (the defaults are an Xbox-style pad on Linux's
-/// joystick driver: left stick axes 0/1, right stick x axis 3, button 0 = A).
+/// joystick driver: left stick axes 0/1, right stick x axis 3; button 1 = B stops).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct PadMapping {
@@ -277,6 +303,31 @@ mod tests {
         assert!(!p.stop);
         p.apply(&ev(1, 1, 1), &m);
         assert!(p.stop);
+    }
+
+    #[test]
+    fn a_scripted_gamepad_drives_the_shaper() {
+        let mut pad = Gamepad::default();
+        let mut shaper = CommandShaper::new(TeleopConfig::default()).unwrap();
+        let push = |value: i16, number: u8| {
+            let mut b = [0u8; 8];
+            b[4..6].copy_from_slice(&value.to_le_bytes());
+            b[6] = 2;
+            b[7] = number;
+            JsEvent::parse(&b)
+        };
+        pad.event(&push(-32767, 1)); // full forward
+        let input: &mut dyn OperatorInput = &mut pad;
+        let mut cmd = VelocityCommand::default();
+        for k in 0..2000 {
+            let (wish, stop) = input.wish(k as f64 * 0.001);
+            assert!(!stop);
+            cmd = shaper.step(wish, 0.001);
+        }
+        assert!(
+            (cmd.vx_mps - 1.0).abs() < 1e-9,
+            "reached full speed after 2 s at 1 m/s²"
+        );
     }
 
     #[test]

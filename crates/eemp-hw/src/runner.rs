@@ -112,6 +112,9 @@ pub struct HwReport {
     pub interventions: BTreeMap<String, usize>,
     /// When the watchdog first sent damping after states had arrived, runner clock, s.
     pub first_watchdog_s: Option<f64>,
+    /// When the watchdog started the damping that followed the last state received (None if
+    /// states kept coming to the end), runner clock, s.
+    pub watchdog_after_last_state_s: Option<f64>,
     /// When the last state datagram arrived, runner clock, s.
     pub last_state_s: Option<f64>,
     pub latched: Option<String>,
@@ -190,7 +193,12 @@ pub fn run_hw(
         let mut newest: Option<SensedState> = None;
         let mut take = |bytes: &[u8], report: &mut HwReport| match LowState::decode(bytes) {
             Ok(s) => {
-                if newest_tick.is_some_and(|t| s.tick <= t) {
+                // Newer in wrap-around arithmetic (the µs tick wraps after 71.6 min); a jump
+                // back by more than half the range is a restart of the robot's clock, taken as new.
+                if newest_tick.is_some_and(|t| {
+                    let d = s.tick.wrapping_sub(t) as i32;
+                    d <= 0 && d > -1_000_000
+                }) {
                     report.stale_states += 1;
                     return;
                 }
@@ -220,6 +228,7 @@ pub fn run_hw(
             (None, Transport::Udp { .. }) => unreachable!("a UDP transport has a link"),
         }
         let fresh = newest.is_some();
+        let mut spike_now: Option<TorqueSpike> = None;
         if let Some(sensed) = newest {
             report.last_state_s = Some(now);
             safety.observe(sensed.measured(now));
@@ -274,15 +283,30 @@ pub fn run_hw(
             if let Some(sp) = opts.torque_spike {
                 // Once, at the first controller step at or after its time (states can be lost).
                 if !spiked && t >= sp.at_s {
-                    cmd[sp.leg][sp.joint].tau += sp.nm;
+                    spike_now = Some(sp);
                     spiked = true;
                 }
             }
             estimate = Some(est);
         }
-        let (sent, log) = safety.filter(now, &cmd);
+        // The command sent now stays in force until the next cycle: the watchdog judges the
+        // state's age at that time, so no command rests on a state older than `watchdog_s`.
+        // The spike goes out in this cycle only (a cycle without a state re-sends `cmd`).
+        let mut asked = cmd;
+        if let Some(sp) = spike_now {
+            asked[sp.leg][sp.joint].tau += sp.nm;
+        }
+        let (sent, log) = safety.filter(now + period, &asked);
+        if fresh {
+            report.watchdog_after_last_state_s = None;
+        }
         for i in &log {
             *report.interventions.entry(kind(i).into()).or_default() += 1;
+            if matches!(i, Intervention::Watchdog { silent_s } if silent_s.is_finite())
+                && report.watchdog_after_last_state_s.is_none()
+            {
+                report.watchdog_after_last_state_s = Some(now);
+            }
             if matches!(i, Intervention::Watchdog { silent_s } if silent_s.is_finite())
                 && report.first_watchdog_s.is_none()
             {

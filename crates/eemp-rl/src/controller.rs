@@ -68,7 +68,10 @@ impl PolicyController {
                     .motion
                     .as_deref()
                     .ok_or("the imitation policy carries no reference motion")?;
-                let motion = ReferenceMotion::parse(Path::new("<policy's motion>"), text)
+                let here = Path::new("<the policy's motion>");
+                let motion = ReferenceMotion::parse(here, text).map_err(|e| e.to_string())?;
+                motion
+                    .check_against(&LegKinematics::new(robot), here)
                     .map_err(|e| e.to_string())?;
                 (
                     Agent::Imitation {

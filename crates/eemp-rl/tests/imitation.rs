@@ -235,6 +235,18 @@ fn motion_files_round_trip_and_bad_ones_are_refused_with_the_line() {
         .check_against(&LegKinematics::new(&longer), &p)
         .unwrap_err();
     assert!(e.to_string().contains("another robot"), "{e}");
+    // A cycle that does not travel cannot be scaled to a commanded speed.
+    let mut still = back.clone();
+    for f in still.frames.iter_mut() {
+        f.p_foot_world = f
+            .p_foot_world
+            .map(|_, p| p - nalgebra::Vector3::new(f.p_root_world.x, 0.0, 0.0));
+        f.p_root_world.x = 0.0;
+    }
+    let e = still
+        .check_against(&LegKinematics::new(&RobotConfig::a1()), &p)
+        .unwrap_err();
+    assert!(e.to_string().contains("must move"), "{e}");
 }
 
 #[test]
@@ -262,11 +274,29 @@ fn the_speed_mapping_reaches_the_command_and_plays_the_clip_at_its_own_speed() {
     // Below rate_min the stride shrinks alone; at 0 the reference steps in place.
     let (rate, stride) = cycle.scales(0.0);
     assert_eq!((rate, stride), (0.5, 0.0));
-    // A scaled stride: feet fore-aft excursion scaled, angles from the IK reach them.
-    let a = cycle.sample(&kin, 0.25, 0.5);
-    for leg in Leg::ALL {
-        let fk = kin.foot_position_body(leg, &a.q[leg]);
-        assert!((fk - a.p_foot_body[leg]).norm() < 1e-6);
+    // A scaled stride at a frame: each foot's fore-aft offset from its cycle mean is halved,
+    // its height and side kept, and the joint angles reach that point.
+    let n = m.frames.len();
+    let mean_x = |leg: Leg| {
+        m.frames
+            .iter()
+            .map(|f| kin.foot_position_body(leg, &f.q[leg]).x)
+            .sum::<f64>()
+            / n as f64
+    };
+    for k in [0, 7, 20] {
+        let a = cycle.sample(&kin, k as f64 / n as f64, 0.5);
+        for leg in Leg::ALL {
+            let file = kin.foot_position_body(leg, &m.frames[k].q[leg]);
+            let want_x = mean_x(leg) + 0.5 * (file.x - mean_x(leg));
+            let got = kin.foot_position_body(leg, &a.q[leg]);
+            assert!(
+                (got.x - want_x).abs() < 1e-6,
+                "{leg:?} frame {k}: x {} vs {want_x}",
+                got.x
+            );
+            assert!((got.y - file.y).abs() < 1e-6 && (got.z - file.z).abs() < 1e-6);
+        }
     }
 }
 

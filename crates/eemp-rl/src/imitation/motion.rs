@@ -258,8 +258,19 @@ impl ReferenceMotion {
     }
 
     /// Checks the file against the robot: joint angles within the ranges, feet where forward
-    /// kinematics puts them (so a motion made for another robot is refused).
+    /// kinematics puts them (so a motion made for another robot is refused), and a cycle that
+    /// travels (the reference is scaled by its speed).
     pub fn check_against(&self, kin: &LegKinematics, path: &Path) -> Result<(), MotionError> {
+        let speed = self.speed_mps();
+        if speed.is_nan() || speed <= 0.01 {
+            return Err(MotionError::Invalid {
+                path: path.to_path_buf(),
+                message: format!(
+                    "the cycle travels at {:.4} m/s: a reference gait must move (> 0.01 m/s)",
+                    self.speed_mps()
+                ),
+            });
+        }
         for (k, f) in self.frames.iter().enumerate() {
             for leg in Leg::ALL {
                 for j in 0..3 {
