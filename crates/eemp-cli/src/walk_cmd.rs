@@ -122,10 +122,10 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
                 "--policy is for a learned --controller (model-free, imitation), not eemp".into(),
             )
         }
-        (c @ ("model-free" | "imitation"), Some(p)) => Driver::Policy(Box::new(
+        (c @ ("model-free" | "imitation" | "eemp-rl"), Some(p)) => Driver::Policy(Box::new(
             eemp_rl::policy::Policy::load(p, Some(c.parse()?))?,
         )),
-        (c @ ("model-free" | "imitation"), None) => {
+        (c @ ("model-free" | "imitation" | "eemp-rl"), None) => {
             return Err(format!(
                 "--controller {c} needs --policy FILE (e.g. policies/a1_{}.safetensors)",
                 c.replace('-', "_")
@@ -133,7 +133,7 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
         }
         (other, _) => {
             return Err(format!(
-                "unknown --controller '{other}': allowed eemp, model-free, imitation"
+                "unknown --controller '{other}': allowed eemp, model-free, imitation, eemp-rl"
             ))
         }
     };
@@ -350,6 +350,17 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
             run_walk(&robot, &spec, observer).map_err(|e| e.to_string())?,
             format!("EEMP ({gait})"),
         ),
+        Driver::Policy(policy) if policy.config.task == eemp_rl::config::TaskKind::EempRl => {
+            let cfg = policy.config.eemp_rl.clone();
+            let start =
+                eemp_rl::tasks::eemp_rl::EempRlController::<eemp_rl::policy::Policy>::start_pose(
+                    &robot, &cfg,
+                )?;
+            let mut c = eemp_rl::tasks::eemp_rl::EempRlController::new(&robot, cfg, *policy)?;
+            let run = run_walk_with(&robot, &spec, &start, &mut c, observer)
+                .map_err(|e| e.to_string())?;
+            (run, "EEMP-RL".to_string())
+        }
         Driver::Policy(policy) => {
             let label = match policy.config.task {
                 eemp_rl::config::TaskKind::Imitation => "motion imitation",

@@ -1,6 +1,7 @@
 //! Training configuration: one TOML file, every field with a default, a unit and a range.
 
 use crate::tasks::cartpole::CartPoleConfig;
+use crate::tasks::eemp_rl::EempRlConfig;
 use crate::tasks::imitation::ImitationConfig;
 use crate::tasks::model_free::ModelFreeConfig;
 use eemp_core::config_error::{check_range, ConfigError};
@@ -14,6 +15,8 @@ pub enum TaskKind {
     ModelFree,
     /// The paper's motion-imitation baseline: joint targets about a retargeted dog gait.
     Imitation,
+    /// EEMP-RL: the planner's five parameters chosen by the policy.
+    EempRl,
     /// A MuJoCo cart-pole the project builds: PPO's own test task.
     CartPole,
 }
@@ -23,6 +26,7 @@ impl TaskKind {
         match self {
             TaskKind::ModelFree => "model-free",
             TaskKind::Imitation => "imitation",
+            TaskKind::EempRl => "eemp-rl",
             TaskKind::CartPole => "cart-pole",
         }
     }
@@ -34,9 +38,10 @@ impl std::str::FromStr for TaskKind {
         match s {
             "model-free" => Ok(TaskKind::ModelFree),
             "imitation" => Ok(TaskKind::Imitation),
+            "eemp-rl" => Ok(TaskKind::EempRl),
             "cart-pole" => Ok(TaskKind::CartPole),
             other => Err(format!(
-                "unknown task '{other}': allowed model-free, imitation, cart-pole"
+                "unknown task '{other}': allowed model-free, imitation, eemp-rl, cart-pole"
             )),
         }
     }
@@ -184,6 +189,7 @@ pub struct TrainConfig {
     pub network: NetworkConfig,
     pub model_free: ModelFreeConfig,
     pub imitation: ImitationConfig,
+    pub eemp_rl: EempRlConfig,
     pub cart_pole: CartPoleConfig,
 }
 
@@ -200,6 +206,7 @@ impl Default for TrainConfig {
             network: NetworkConfig::default(),
             model_free: ModelFreeConfig::default(),
             imitation: ImitationConfig::default(),
+            eemp_rl: EempRlConfig::default(),
             cart_pole: CartPoleConfig::default(),
         }
     }
@@ -226,6 +233,7 @@ impl TrainConfig {
         match self.task {
             TaskKind::ModelFree => self.model_free.validate(),
             TaskKind::Imitation => self.imitation.validate(),
+            TaskKind::EempRl => self.eemp_rl.validate(),
             TaskKind::CartPole => self.cart_pole.validate(),
         }
     }

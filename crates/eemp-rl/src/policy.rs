@@ -28,6 +28,7 @@ pub fn task_dims(config: &TrainConfig) -> (usize, usize) {
             crate::tasks::model_free::ACT_DIM,
         ),
         TaskKind::Imitation => (config.imitation.obs_dim(), crate::tasks::imitation::ACT_DIM),
+        TaskKind::EempRl => (config.eemp_rl.obs_dim(), crate::tasks::eemp_rl::ACT_DIM),
         TaskKind::CartPole => (4, 1),
     }
 }

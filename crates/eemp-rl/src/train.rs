@@ -14,6 +14,7 @@ use crate::nn::gaussian_log_prob;
 use crate::policy::{normalizer_from_json, normalizer_to_json, Policy};
 use crate::ppo::{update, Rollout, UpdateStats};
 use crate::tasks::cartpole::{cartpole_model, CartPole};
+use crate::tasks::eemp_rl::EempRlEnv;
 use crate::tasks::imitation::ImitationEnv;
 use crate::tasks::model_free::{training_model, ModelFreeEnv};
 use crate::tensor_file::TensorFile;
@@ -110,6 +111,7 @@ pub enum AnyVecEnv {
     ModelFree(VecEnv<ModelFreeEnv>),
     /// With the reference motion file's text (stored in the policy).
     Imitation(VecEnv<ImitationEnv>, String),
+    EempRl(VecEnv<EempRlEnv>),
     CartPole(VecEnv<CartPole>),
 }
 
@@ -149,6 +151,15 @@ pub fn make_envs(
                 .collect::<Result<Vec<_>, _>>()?;
             AnyVecEnv::Imitation(VecEnv::new(envs, config.seed, threads)?, text)
         }
+        TaskKind::EempRl => {
+            // EEMP runs at the robot file's time step (its MPC and swing law are tuned there).
+            let model = eemp_sim::backend::build_model(robot, &Default::default())
+                .map_err(|e| e.to_string())?;
+            let envs = (0..config.num_envs)
+                .map(|_| EempRlEnv::new(robot, model.clone(), config.eemp_rl.clone()))
+                .collect::<Result<Vec<_>, _>>()?;
+            AnyVecEnv::EempRl(VecEnv::new(envs, config.seed, threads)?)
+        }
         TaskKind::CartPole => {
             let model = cartpole_model()?;
             let envs = (0..config.num_envs)
@@ -172,6 +183,7 @@ pub fn train(
         AnyVecEnv::Imitation(v, m) => {
             Trainer::new(config, v, Some(m), opts)?.run(opts, on_iteration)
         }
+        AnyVecEnv::EempRl(v) => Trainer::new(config, v, None, opts)?.run(opts, on_iteration),
         AnyVecEnv::CartPole(v) => Trainer::new(config, v, None, opts)?.run(opts, on_iteration),
     }
 }
