@@ -13,6 +13,7 @@ use eemp_core::robot::RobotConfig;
 use eemp_rl::config::TaskKind;
 use eemp_rl::controller::PolicyController;
 use eemp_rl::policy::Policy;
+use eemp_rl::tasks::eemp_rl::EempRlController;
 use eemp_sim::scenario::Scenario;
 use eemp_sim::walk::{eemp_controller, run_walk_with, StartPose, WalkSpec};
 use rayon::prelude::*;
@@ -27,7 +28,7 @@ use std::sync::Mutex;
 pub struct MethodConfig {
     /// Its name in tables and figures.
     pub name: String,
-    /// `eemp`, `model-free` or `imitation`.
+    /// `eemp`, `eemp-rl`, `model-free` or `imitation`.
     pub kind: String,
     /// EEMP: the gait (`trot`, `walk`, `free`) and its per-speed table.
     #[serde(default)]
@@ -161,7 +162,7 @@ impl SuiteConfig {
                         .unwrap_or_else(|| format!("tables/a1_{g}.toml").into());
                     ParamsTable::load(&t).map_err(|e| format!("method '{}': {e}", m.name))?;
                 }
-                k @ ("model-free" | "imitation") => {
+                k @ ("model-free" | "imitation" | "eemp-rl") => {
                     let p = m.policy.as_ref().ok_or_else(|| {
                         format!("method '{}': kind {k} needs policy = FILE", m.name)
                     })?;
@@ -170,7 +171,7 @@ impl SuiteConfig {
                 }
                 other => {
                     return Err(format!(
-                        "method '{}': unknown kind '{other}': allowed eemp, model-free, imitation",
+                        "method '{}': unknown kind '{other}': allowed eemp, eemp-rl, model-free, imitation",
                         m.name
                     ))
                 }
@@ -281,6 +282,16 @@ pub fn simulate(
             spec.params_table = Some(ParamsTable::load(&t).map_err(|e| e.to_string())?);
             let mut c = eemp_controller(robot, &spec).map_err(|e| e.to_string())?;
             let start = StartPose::eemp(robot, &spec).map_err(|e| e.to_string())?;
+            run_walk_with(robot, &spec, &start, &mut c, |_| {})
+        }
+        "eemp-rl" => {
+            let p = Policy::load(
+                m.policy.as_ref().ok_or("no policy")?,
+                Some(TaskKind::EempRl),
+            )?;
+            let cfg = p.config.eemp_rl.clone();
+            let start = EempRlController::<Policy>::start_pose(robot, &cfg)?;
+            let mut c = EempRlController::new(robot, cfg, p)?;
             run_walk_with(robot, &spec, &start, &mut c, |_| {})
         }
         k => {

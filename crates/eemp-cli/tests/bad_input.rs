@@ -135,7 +135,7 @@ fn bad_training_and_policy_input_exits_2_names_the_file_and_writes_nothing() {
         ),
         (
             &["train", "--task", "dance"],
-            &["dance", "model-free, imitation, cart-pole"],
+            &["dance", "model-free, imitation, eemp-rl, cart-pole"],
         ),
         (
             &["train", "--task", "model-free", "--config", bad_config],
