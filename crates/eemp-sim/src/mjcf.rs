@@ -115,10 +115,10 @@ pub fn robot_mjcf(robot: &RobotConfig, extras: &SceneExtras) -> String {
     <geom contype="1" conaffinity="0" condim="3" rgba="0.3 0.3 0.35 1"/>
   </default>
   <visual><global offwidth="1280" offheight="720"/></visual>
-  <asset>{assets}</asset>
+  <asset><texture name="floor_checker" type="2d" builtin="checker" width="256" height="256" rgb1="0.85 0.85 0.85" rgb2="0.62 0.62 0.68"/><material name="floor" texture="floor_checker" texrepeat="4 4" texuniform="true"/>{assets}</asset>
   <worldbody>
     <light name="sun" pos="0 0 4" dir="0 0 -1" directional="true"/>
-    <geom name="floor" type="plane" size="0 0 0.05" pos="0 0 {floor_z}" contype="1" conaffinity="1" priority="1" condim="3" friction="{mu} 0.02 0.01" solimp="0.015 1 0.031" rgba="0.8 0.8 0.8 1"/>
+    <geom name="floor" type="plane" size="0 0 0.05" pos="0 0 {floor_z}" contype="1" conaffinity="1" priority="1" condim="3" friction="{mu} 0.02 0.01" solimp="0.015 1 0.031" material="floor"/>
 {extras}
     <body name="trunk" pos="0 0 0.3">
       <freejoint name="root"/>
