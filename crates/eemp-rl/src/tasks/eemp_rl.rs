@@ -15,6 +15,7 @@
 //! - 20 s episodes; the commanded speed changes within the episode (0.05–1.0 m/s, a new one every
 //!   `command_every_s`), so the policy meets the transitions; free gait.
 
+use super::model_free::run_period;
 use crate::env::{Env, StepInfo};
 use eemp_core::body_state::RobotState;
 use eemp_core::config_error::{check_range, ConfigError};
@@ -22,7 +23,7 @@ use eemp_core::control::Controller;
 use eemp_core::eemp_controller::{EempController, ParamsSource};
 use eemp_core::kinematics::LegKinematics;
 use eemp_core::leg::{Leg, LegMap};
-use eemp_core::metrics::{force_manipulability, positive_power_w};
+use eemp_core::metrics::{cost_of_transport_dimensionless, force_manipulability, positive_power_w};
 use eemp_core::planner::params::table_i;
 use eemp_core::planner::{Gait, PlannerConfig, PlannerParams, VelocityCommand};
 use eemp_core::robot::RobotConfig;
@@ -386,61 +387,46 @@ impl Env for EempRlEnv {
         self.controller.params = ParamsSource::Constant(self.params);
         let mut iv = Interval::default();
         let dt = self.loop_.sim().timestep_s();
-        let mut fell = false;
-        let mut unstable = false;
-        let kin = self.kin.clone();
-        for _ in 0..self.substeps {
-            let mut seen = None;
-            let out = self
-                .loop_
-                .step(&mut self.controller, self.command, &mut |r| {
-                    let qd = r.state.joints.map(|_, j| j.qd);
-                    let p = r.state.body.p_world;
-                    let e = positive_power_w(&qd, &r.output.torques) * dt;
-                    let stance = r.stance();
-                    let mut m = (0.0, 0);
-                    for leg in Leg::ALL.into_iter().filter(|l| stance[*l]) {
-                        if let Some(v) = force_manipulability(
-                            &kin.foot_jacobian_body(leg, &r.state.joints[leg].q),
-                        ) {
-                            m.0 += v;
-                            m.1 += 1;
-                        }
+        let kin = &self.kin;
+        let last_tau = &mut self.last_tau;
+        let (fell, unstable) = run_period(
+            &mut self.loop_,
+            &mut self.controller,
+            self.command,
+            self.substeps,
+            &mut |r| {
+                let qd = r.state.joints.map(|_, j| j.qd);
+                let p = r.state.body.p_world;
+                iv.energy_j += positive_power_w(&qd, &r.output.torques) * dt;
+                iv.start_xy.get_or_insert([p.x, p.y]);
+                iv.end_xy = [p.x, p.y];
+                let stance = r.stance();
+                let (mut sum, mut n) = (0.0, 0);
+                for leg in Leg::ALL.into_iter().filter(|l| stance[*l]) {
+                    if let Some(v) =
+                        force_manipulability(&kin.foot_jacobian_body(leg, &r.state.joints[leg].q))
+                    {
+                        sum += v;
+                        n += 1;
                     }
-                    seen = Some((e, [p.x, p.y], m, r.output.torques));
-                });
-            if let Some((e, xy, m, tau)) = seen {
-                iv.energy_j += e;
-                iv.start_xy.get_or_insert(xy);
-                iv.end_xy = xy;
-                if m.1 > 0 {
-                    iv.manip_sum += m.0 / m.1 as f64;
+                }
+                if n > 0 {
+                    iv.manip_sum += sum / n as f64;
                     iv.manip_n += 1;
                 }
-                self.last_tau = tau;
-            }
-            if self.loop_.sim_mut().take_instability() {
-                unstable = true;
-                fell = true;
-                break;
-            }
-            if out.fell || self.loop_.sim().trunk_contact() {
-                fell = true;
-                break;
-            }
-        }
+                *last_tau = r.output.torques;
+            },
+        );
         let s = self.loop_.sim().ground_truth_state();
         self.q_ref = reference_joints(&self.kin, self.controller.plan(), &s);
         let dist = iv
             .start_xy
             .map(|a| (iv.end_xy[0] - a[0]).hypot(iv.end_xy[1] - a[1]))
             .unwrap_or(0.0);
-        let weight = self.robot.total_mass_kg() * 9.81;
-        let cot = if dist > 1e-6 {
-            (iv.energy_j / (weight * dist)).min(self.config.cot_clip)
-        } else {
-            self.config.cot_clip
-        };
+        // Eq. (8), dimensionless; an interval without distance counts as the clip.
+        let cot = cost_of_transport_dimensionless(iv.energy_j, self.robot.total_mass_kg(), dist)
+            .filter(|_| dist > 1e-6)
+            .map_or(self.config.cot_clip, |c| c.min(self.config.cot_clip));
         let manip = if iv.manip_n > 0 {
             iv.manip_sum / iv.manip_n as f64
         } else {

@@ -13,8 +13,8 @@
 //! `root_drift_limit_m` from where the command would have taken it.
 
 use super::model_free::{
-    action_rate, collision, lin_vel_z_error, observe, orientation, run_pd_period, targets_about,
-    torques, tracking_ang_vel, tracking_lin_vel, ExtraObs, PdPeriod, PolicyMemory,
+    action_rate, base_obs_dim, collision, lin_vel_z_error, observe, orientation, run_pd_period,
+    targets_about, torques, tracking_ang_vel, tracking_lin_vel, ExtraObs, PdPeriod, PolicyMemory,
 };
 use crate::env::{Env, StepInfo};
 use crate::imitation::motion::ReferenceMotion;
@@ -247,13 +247,7 @@ impl ImitationConfig {
     }
 
     pub fn obs_dim(&self) -> usize {
-        let e = &self.extra_obs;
-        5 * 12
-            + 3
-            + 3 * (e.base_lin_vel as usize + e.base_ang_vel as usize + e.gravity as usize)
-            + 24 * self.history
-            + REF_FRAME * (1 + self.future_s.len())
-            + 4
+        base_obs_dim(&self.extra_obs, self.history) + REF_FRAME * (1 + self.future_s.len()) + 4
     }
 }
 

@@ -297,12 +297,16 @@ impl ModelFreeConfig {
     }
 
     pub fn obs_dim(&self) -> usize {
-        let e = &self.extra_obs;
-        5 * 12
-            + 3
-            + 3 * (e.base_lin_vel as usize + e.base_ang_vel as usize + e.gravity as usize)
-            + FRAME * self.history
+        base_obs_dim(&self.extra_obs, self.history)
     }
+}
+
+/// Length of what [`observe`] writes: O^M, the command, the extras and the history.
+pub fn base_obs_dim(e: &ExtraObs, history: usize) -> usize {
+    5 * 12
+        + 3
+        + 3 * (e.base_lin_vel as usize + e.base_ang_vel as usize + e.gravity as usize)
+        + FRAME * history
 }
 
 /// What a model-free policy remembers between its steps (the same in training and on the robot).
@@ -549,30 +553,37 @@ pub(crate) fn run_pd_period(
     command: VelocityCommand,
     substeps: usize,
 ) -> PdPeriod {
-    let mut p = PdPeriod {
-        fell: false,
-        unstable: false,
-        last_tau: [0.0; 12],
-    };
+    let mut last_tau = [0.0; 12];
+    let (fell, unstable) = run_period(loop_, pd, command, substeps, &mut |r| {
+        last_tau = flat(&r.output.torques);
+    });
+    PdPeriod {
+        fell,
+        unstable,
+        last_tau,
+    }
+}
+
+/// Steps the closed loop `substeps` times under any controller, showing each step to
+/// `observer`; stops early on a fall, a trunk contact or a MuJoCo instability. Returns
+/// (fell, unstable) — an instability counts as a fall too.
+pub(crate) fn run_period(
+    loop_: &mut ClosedLoop,
+    controller: &mut dyn eemp_core::control::Controller,
+    command: VelocityCommand,
+    substeps: usize,
+    observer: &mut dyn FnMut(&eemp_sim::closed_loop::StepRecord),
+) -> (bool, bool) {
     for _ in 0..substeps {
-        let mut tau_seen = None;
-        let out = loop_.step(pd, command, &mut |r| {
-            tau_seen = Some(flat(&r.output.torques));
-        });
-        if let Some(t) = tau_seen {
-            p.last_tau = t;
-        }
+        let out = loop_.step(controller, command, observer);
         if loop_.sim_mut().take_instability() {
-            p.unstable = true;
-            p.fell = true;
-            break;
+            return (true, true);
         }
         if out.fell || loop_.sim().trunk_contact() {
-            p.fell = true;
-            break;
+            return (true, false);
         }
     }
-    p
+    (false, false)
 }
 
 /// Task state that a checkpoint must carry to continue bit for bit.
