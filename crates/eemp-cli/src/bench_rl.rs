@@ -43,7 +43,7 @@ fn env_rate(
     robot: &RobotConfig,
     o: &RlBenchOptions,
     threads: usize,
-    mut record: Option<&mut Vec<(SimSnapshot, Vec<f32>)>>,
+    record: Option<&mut Vec<(SimSnapshot, Vec<f32>)>>,
 ) -> Result<f64, String> {
     let model = training_model(robot, &config.model_free)?;
     let envs = (0..o.num_envs)
@@ -55,16 +55,17 @@ fn env_rate(
     let actions: Vec<Vec<f32>> = (0..o.steps)
         .map(|_| (0..n).map(|_| rng.random_range(-1.0..1.0)).collect())
         .collect();
+    let Some(record) = record else {
+        return Ok(eemp_rl::env::stepping_rate(&mut v, &actions));
+    };
     let mut elapsed = 0.0;
     for a in &actions {
-        if let Some(r) = record.as_deref_mut() {
-            let act = v.act_dim();
-            r.extend(
-                v.envs()
-                    .enumerate()
-                    .map(|(i, e)| (e.sim().snapshot(), a[i * act..(i + 1) * act].to_vec())),
-            );
-        }
+        let act = v.act_dim();
+        record.extend(
+            v.envs()
+                .enumerate()
+                .map(|(i, e)| (e.sim().snapshot(), a[i * act..(i + 1) * act].to_vec())),
+        );
         let t = Instant::now();
         v.step(a);
         elapsed += t.elapsed().as_secs_f64();

@@ -38,6 +38,9 @@ pub trait Env: Send {
         obs: &mut [f32],
         terms: &mut [f64],
     ) -> StepInfo;
+    /// Forgets earlier episodes: the next `reset` starts as the first one after construction
+    /// does (tasks that stagger their first episodes start staggered again).
+    fn restart(&mut self) {}
     /// Whether the last step ended in a fall (for logs).
     fn fell(&self) -> bool {
         false
@@ -203,6 +206,25 @@ impl<E: Env> VecEnv<E> {
         self.slots.iter().map(|s| s.env.save_state()).collect()
     }
 
+    /// Gives environment `i` a fresh RNG seeded `seeds[i]` and starts new episodes in all of
+    /// them as freshly built ones would: `reseed(&(0..n).map(|i| env_seed(s, i)).collect())` is
+    /// the state `new(.., s, ..)` starts from (the Python bindings seed this way).
+    pub fn reseed(&mut self, seeds: &[u64]) -> Result<(), String> {
+        if seeds.len() != self.slots.len() {
+            return Err(format!(
+                "{} seeds for {} environments",
+                seeds.len(),
+                self.slots.len()
+            ));
+        }
+        for (s, &seed) in self.slots.iter_mut().zip(seeds) {
+            s.rng = ChaCha8Rng::seed_from_u64(seed);
+            s.env.restart();
+        }
+        self.reset_all();
+        Ok(())
+    }
+
     pub fn reset_all(&mut self) {
         let d = self.obs_dim;
         let (slots, obs) = (&mut self.slots, &mut self.obs);
@@ -298,6 +320,16 @@ fn step_slot<E: Env>(
         sanitize(obs);
     }
     info
+}
+
+/// Env steps per second of `v` stepped with each batch of `actions` in turn (row-major, env ×
+/// act): the Rust side of `eemp bench rl` and of the Python bindings' throughput benchmark.
+pub fn stepping_rate<E: Env>(v: &mut VecEnv<E>, actions: &[Vec<f32>]) -> f64 {
+    let t = std::time::Instant::now();
+    for a in actions {
+        v.step(a);
+    }
+    (actions.len() * v.len()) as f64 / t.elapsed().as_secs_f64()
 }
 
 /// Replaces non-finite values (a reset can only produce them from a broken model) by 0.

@@ -119,6 +119,15 @@ pub enum AnyVecEnv {
 pub fn load_motion(path: &Path, robot: &RobotConfig) -> Result<(ReferenceMotion, String), String> {
     let text = std::fs::read_to_string(path)
         .map_err(|e| format!("cannot read motion file {}: {e}", path.display()))?;
+    parse_motion(path, text, robot)
+}
+
+/// Checks a reference motion's text (named `path` in messages) against the robot.
+pub fn parse_motion(
+    path: &Path,
+    text: String,
+    robot: &RobotConfig,
+) -> Result<(ReferenceMotion, String), String> {
     let motion = ReferenceMotion::parse(path, &text).map_err(|e| e.to_string())?;
     motion
         .check_against(&eemp_core::kinematics::LegKinematics::new(robot), path)
@@ -126,10 +135,22 @@ pub fn load_motion(path: &Path, robot: &RobotConfig) -> Result<(ReferenceMotion,
     Ok((motion, text))
 }
 
+/// The environments of a config's task; an imitation task reads `imitation.motion_file`.
 pub fn make_envs(
     config: &TrainConfig,
     robot: &RobotConfig,
     threads: usize,
+) -> Result<AnyVecEnv, String> {
+    make_envs_with(config, robot, threads, None)
+}
+
+/// [`make_envs`] with an imitation task's motion given (as [`parse_motion`] returns it) instead
+/// of read from the config's file.
+pub fn make_envs_with(
+    config: &TrainConfig,
+    robot: &RobotConfig,
+    threads: usize,
+    motion: Option<(ReferenceMotion, String)>,
 ) -> Result<AnyVecEnv, String> {
     Ok(match config.task {
         TaskKind::ModelFree => {
@@ -141,7 +162,10 @@ pub fn make_envs(
         }
         TaskKind::Imitation => {
             let c = &config.imitation;
-            let (motion, text) = load_motion(Path::new(&c.motion_file), robot)?;
+            let (motion, text) = match motion {
+                Some(m) => m,
+                None => load_motion(Path::new(&c.motion_file), robot)?,
+            };
             let mut r = robot.clone();
             r.simulation.timestep_s = c.train_timestep_s;
             let model = eemp_sim::backend::build_model(&r, &Default::default())

@@ -3,7 +3,7 @@
 
 use eemp_core::robot::RobotConfig;
 use eemp_rl::config::{Activation, LrSchedule, NetworkConfig, PpoConfig, TaskKind, TrainConfig};
-use eemp_rl::env::VecEnv;
+use eemp_rl::env::{env_seed, VecEnv};
 use eemp_rl::nn::ActorCritic;
 use eemp_rl::policy::Policy;
 use eemp_rl::ppo::{ppo_loss, Minibatch};
@@ -181,6 +181,42 @@ fn stepping_on_one_or_two_threads_gives_identical_rollouts() {
         assert_eq!(a.terms, b.terms);
         assert_eq!(a.infos, b.infos);
     }
+}
+
+#[test]
+fn reseeding_used_environments_restarts_them_as_freshly_built_ones() {
+    // What the Python bindings' reset(seed) relies on: reseed(env_seed(s, i)) after any
+    // history steps exactly as VecEnv::new(.., s, ..) (first episodes staggered again).
+    let robot = RobotConfig::a1();
+    let mut config = TrainConfig::default();
+    config.model_free.episode_s = 0.4;
+    let model = training_model(&robot, &config.model_free).unwrap();
+    let make = |seed| {
+        let envs = (0..3)
+            .map(|_| ModelFreeEnv::new(&robot, model.clone(), config.model_free.clone()).unwrap())
+            .collect();
+        VecEnv::new(envs, seed, 1).unwrap()
+    };
+    let (mut fresh, mut used) = (make(4), make(99));
+    let mut rng = ChaCha8Rng::seed_from_u64(2);
+    let mut actions = || -> Vec<f32> { (0..3 * 12).map(|_| rng.random_range(-1.0..1.0)).collect() };
+    for _ in 0..30 {
+        used.step(&actions());
+    }
+    used.reseed(&(0..3).map(|i| env_seed(4, i)).collect::<Vec<_>>())
+        .unwrap();
+    assert_eq!(fresh.obs, used.obs);
+    let mut ends = 0;
+    for _ in 0..60 {
+        let a = actions();
+        fresh.step(&a);
+        used.step(&a);
+        assert_eq!(fresh.obs, used.obs);
+        assert_eq!(fresh.infos, used.infos);
+        ends += fresh.ended.len();
+    }
+    assert!(ends >= 3, "20-step episodes end in the window");
+    assert!(used.reseed(&[1, 2]).is_err());
 }
 
 #[test]

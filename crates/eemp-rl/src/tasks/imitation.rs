@@ -659,6 +659,9 @@ impl Env for ImitationEnv {
         }
     }
 
+    fn restart(&mut self) {
+        self.first_episode = true;
+    }
     fn fell(&self) -> bool {
         self.fell
     }

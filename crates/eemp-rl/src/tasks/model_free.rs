@@ -894,6 +894,9 @@ impl Env for ModelFreeEnv {
         }
     }
 
+    fn restart(&mut self) {
+        self.first_episode = true;
+    }
     fn fell(&self) -> bool {
         self.fell
     }

@@ -1,0 +1,131 @@
+"""The gymnasium environments against the Rust tasks they wrap."""
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import eemp
+from eemp import _eemp
+
+SHORT_EPISODES = """
+task = "model-free"
+[model_free]
+episode_s = 0.5
+"""
+
+
+@pytest.mark.parametrize("task", list(eemp.TASKS))
+def test_gymnasium_checker_passes(task):
+    env = gym.make(task)
+    check_env(env.unwrapped, skip_render_check=True)
+    obs, _ = env.reset(seed=0)
+    assert obs.dtype == np.float32 and obs.shape == env.observation_space.shape
+
+
+def python_rollout(env, seed, actions):
+    """Observations after every step as Rust's auto-resetting loop sees them."""
+    obs, _ = env.reset(seed=seed)
+    seen, rewards, term, trunc = [obs], [], [], []
+    for a in actions:
+        o, r, te, tr, _ = env.step(a)
+        if te or tr:
+            o, _ = env.reset()  # the episode Rust already started
+        seen.append(o)
+        rewards.append(r)
+        term.append(te)
+        trunc.append(tr)
+    return np.array(seen), np.array(rewards), np.array(term), np.array(trunc)
+
+
+@pytest.mark.parametrize("task,steps", [("A1ModelFree-v0", 120), ("A1Imitation-v0", 60), ("A1EempRl-v0", 12)])
+def test_python_rollout_is_the_rust_rollout_bit_for_bit(task, steps):
+    env = eemp.make_env(task)
+    actions = np.random.default_rng(5).uniform(-1, 1, (steps, env.action_space.shape[0])).astype(np.float32)
+    obs, rew, term, trunc = python_rollout(env, eemp.env_seed(11, 0), actions)
+    r_obs, r_rew, r_term, r_trunc = _eemp.rust_rollout(eemp.TASKS[task], 11, actions[:, None, :])
+    assert np.array_equal(obs, r_obs[:, 0, :])
+    assert np.array_equal(rew, r_rew[:, 0])
+    assert np.array_equal(term, r_term[:, 0])
+    assert np.array_equal(trunc, r_trunc[:, 0])
+
+
+def test_rollout_through_episode_ends_is_bit_for_bit(tmp_path):
+    config = tmp_path / "short.toml"
+    config.write_text(SHORT_EPISODES)
+    env = eemp.make_env("A1ModelFree-v0", config=str(config))
+    actions = np.random.default_rng(6).uniform(-1, 1, (80, 12)).astype(np.float32)
+    obs, rew, term, trunc = python_rollout(env, eemp.env_seed(3, 0), actions)
+    assert trunc.sum() >= 2, "25-step episodes must end within 80 steps"
+    r_obs, r_rew, _, r_trunc = _eemp.rust_rollout("model-free", 3, actions[:, None, :], config=str(config))
+    assert np.array_equal(obs, r_obs[:, 0, :])
+    assert np.array_equal(rew, r_rew[:, 0])
+    assert np.array_equal(trunc, r_trunc[:, 0])
+
+
+def test_same_seed_same_rollout_and_seeds_matter():
+    env = eemp.make_env("A1ModelFree-v0")
+    actions = np.random.default_rng(1).uniform(-1, 1, (30, 12)).astype(np.float32)
+    a = python_rollout(env, 4, actions)
+    b = python_rollout(env, 4, actions)
+    c = python_rollout(env, 5, actions)
+    assert all(np.array_equal(x, y) for x, y in zip(a, b))
+    assert not np.array_equal(a[0], c[0])
+
+
+def test_vector_env_equals_n_single_envs_whatever_the_threads(tmp_path):
+    config = tmp_path / "short.toml"
+    config.write_text(SHORT_EPISODES)
+    n, steps, seed = 4, 40, 9
+    actions = np.random.default_rng(2).uniform(-1, 1, (steps, n, 12)).astype(np.float32)
+    runs = []
+    for threads in (1, 3):
+        v = eemp.make_vec_env("A1ModelFree-v0", n, threads=threads, config=str(config))
+        obs, _ = v.reset(seed=seed)
+        out = [(obs, None, None, None)]
+        for a in actions:
+            o, r, te, tr, info = v.step(a)
+            out.append((o, r, te, tr, info["final_obs"].copy()))
+        runs.append(out)
+    for x, y in zip(*runs):
+        for p, q in zip(x, y):
+            assert p is None or np.array_equal(p, q)
+    for i in range(n):
+        single = eemp.make_env("A1ModelFree-v0", config=str(config))
+        obs, rew, term, trunc = python_rollout(single, eemp.env_seed(seed, i), actions[:, i, :])
+        assert np.array_equal(obs[0], runs[0][0][0][i])
+        for t in range(steps):
+            o, r, te, tr, final = runs[0][t + 1]
+            assert r[i] == rew[t] and te[i] == term[t] and tr[i] == trunc[t]
+            assert np.array_equal(o[i], obs[t + 1])
+    assert any(run[4].any() for run in runs[0][1:]), "some episode must end in the window"
+
+
+def test_vector_env_is_the_rust_trainers_seeding():
+    n, seed = 3, 21
+    actions = np.random.default_rng(8).uniform(-1, 1, (10, n, 12)).astype(np.float32)
+    v = eemp.make_vec_env("A1ModelFree-v0", n)
+    obs, _ = v.reset(seed=seed)
+    seen = [obs]
+    for a in actions:
+        seen.append(v.step(a)[0])
+    r_obs, *_ = _eemp.rust_rollout("model-free", seed, actions)
+    assert np.array_equal(np.array(seen), r_obs)
+
+
+def test_final_obs_and_truncation_in_vector_env(tmp_path):
+    config = tmp_path / "short.toml"
+    config.write_text(SHORT_EPISODES)
+    v = eemp.make_vec_env("A1ModelFree-v0", 2, config=str(config))
+    v.reset(seed=0)
+    zero = np.zeros((2, 12), np.float32)
+    ends = np.zeros(2, int)
+    for t in range(50):
+        obs, rew, term, trunc, info = v.step(zero)
+        assert not term.any(), "standing still does not fall"
+        assert np.array_equal(info["_final_obs"], trunc)
+        for i in np.nonzero(trunc)[0]:
+            ends[i] += 1
+            assert not np.array_equal(info["final_obs"][i], obs[i]), "obs is the new episode's first"
+    # 25-step episodes (the first ones start at a random step, as in training).
+    assert (ends >= 1).all() and (ends <= 2).all()
