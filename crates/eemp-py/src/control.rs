@@ -16,13 +16,17 @@ use eemp_sim::backend::{build_model, Simulation};
 use eemp_sim::closed_loop::StateSource;
 use eemp_sim::walk::{eemp_controller, reset_to_start, run_walk, StartPose, WalkSpec};
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
-use numpy::{PyArray1, PyReadonlyArray1};
+use numpy::{AllowTypeChange, PyArray1, PyArrayLike1};
 use pyo3::prelude::*;
+use pyo3::sync::MutexExt;
 use std::path::PathBuf;
 use std::sync::Mutex;
 
+/// Any array-like of numbers (a list, float32 or float64 array, ...), read as f64.
+type Vector1<'py> = PyArrayLike1<'py, f64, AllowTypeChange>;
+
 /// `n` finite numbers named `name`, or a ValueError saying what is wrong.
-fn vector(name: &str, a: &PyReadonlyArray1<'_, f64>, n: usize) -> PyResult<Vec<f64>> {
+fn vector(name: &str, a: &Vector1<'_>, n: usize) -> PyResult<Vec<f64>> {
     let v: Vec<f64> = a.as_array().iter().copied().collect();
     if v.len() != n {
         return Err(value_error(format!(
@@ -48,12 +52,12 @@ fn v3(v: &[f64]) -> Vector3<f64> {
 #[allow(clippy::too_many_arguments)]
 fn robot_state(
     time_s: f64,
-    p_world: &PyReadonlyArray1<'_, f64>,
-    quat_wxyz: &PyReadonlyArray1<'_, f64>,
-    v_world: &PyReadonlyArray1<'_, f64>,
-    omega_world: &PyReadonlyArray1<'_, f64>,
-    q: &PyReadonlyArray1<'_, f64>,
-    qd: &PyReadonlyArray1<'_, f64>,
+    p_world: &Vector1<'_>,
+    quat_wxyz: &Vector1<'_>,
+    v_world: &Vector1<'_>,
+    omega_world: &Vector1<'_>,
+    q: &Vector1<'_>,
+    qd: &Vector1<'_>,
 ) -> PyResult<RobotState> {
     if !time_s.is_finite() {
         return Err(value_error(format!("time_s is {time_s}: must be finite")));
@@ -168,12 +172,12 @@ impl PyEempController {
         &self,
         py: Python<'py>,
         time_s: f64,
-        p_world: PyReadonlyArray1<'py, f64>,
-        quat_wxyz: PyReadonlyArray1<'py, f64>,
-        v_world: PyReadonlyArray1<'py, f64>,
-        omega_world: PyReadonlyArray1<'py, f64>,
-        q: PyReadonlyArray1<'py, f64>,
-        qd: PyReadonlyArray1<'py, f64>,
+        p_world: Vector1<'py>,
+        quat_wxyz: Vector1<'py>,
+        v_world: Vector1<'py>,
+        omega_world: Vector1<'py>,
+        q: Vector1<'py>,
+        qd: Vector1<'py>,
         command: (f64, f64, f64),
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let state = robot_state(
@@ -191,7 +195,10 @@ impl PyEempController {
                 "command {command:?} must be finite (v_x, v_y m/s, yaw rate rad/s)"
             )));
         }
-        let mut g = self.inner.lock().unwrap_or_else(|p| p.into_inner());
+        let mut g = self
+            .inner
+            .lock_py_attached(py)
+            .unwrap_or_else(|p| p.into_inner());
         let s = &mut *g;
         s.model.set_state(&state);
         s.model.prepare();
@@ -210,8 +217,11 @@ impl PyEempController {
     }
 
     /// The legs in stance in the last step's plan (FR, FL, RR, RL).
-    fn stance(&self) -> Option<[bool; 4]> {
-        let g = self.inner.lock().unwrap_or_else(|p| p.into_inner());
+    fn stance(&self, py: Python<'_>) -> Option<[bool; 4]> {
+        let g = self
+            .inner
+            .lock_py_attached(py)
+            .unwrap_or_else(|p| p.into_inner());
         g.controller.plan().map(|p| p.stance.0)
     }
 }
@@ -220,6 +230,14 @@ impl PyEempController {
 #[pyclass(module = "eemp._eemp", name = "A1Sim")]
 pub struct PyA1Sim {
     sim: Mutex<Simulation>,
+}
+
+impl PyA1Sim {
+    fn lock(&self, py: Python<'_>) -> std::sync::MutexGuard<'_, Simulation> {
+        self.sim
+            .lock_py_attached(py)
+            .unwrap_or_else(|p| p.into_inner())
+    }
 }
 
 #[pymethods]
@@ -240,32 +258,22 @@ impl PyA1Sim {
     }
 
     #[getter]
-    fn timestep_s(&self) -> f64 {
-        self.sim
-            .lock()
-            .unwrap_or_else(|p| p.into_inner())
-            .timestep_s()
+    fn timestep_s(&self, py: Python<'_>) -> f64 {
+        self.lock(py).timestep_s()
     }
 
     /// One physics step with the 12 joint torques (N·m, clamped by the motors' limit).
-    fn step(&self, torques: PyReadonlyArray1<'_, f64>) -> PyResult<()> {
+    fn step(&self, py: Python<'_>, torques: Vector1<'_>) -> PyResult<()> {
         let t = vector("torques", &torques, 12)?;
         let tau = LegMap::from_fn(|leg| v3(&t[3 * leg.index()..3 * leg.index() + 3]));
-        self.sim
-            .lock()
-            .unwrap_or_else(|p| p.into_inner())
-            .step_bare(&tau);
+        self.lock(py).step_bare(&tau);
         Ok(())
     }
 
     /// The simulator's true state: time_s, p_world, quat_wxyz, v_world, omega_world, q, qd
     /// (the arguments of `EempController.step`).
     fn state<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, pyo3::types::PyDict>> {
-        let s = self
-            .sim
-            .lock()
-            .unwrap_or_else(|p| p.into_inner())
-            .ground_truth_state();
+        let s = self.lock(py).ground_truth_state();
         let b = &s.body;
         let q = b.r_world_body.coords;
         let d = pyo3::types::PyDict::new(py);

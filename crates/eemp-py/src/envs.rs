@@ -12,6 +12,7 @@ use numpy::{
 };
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
+use pyo3::sync::MutexExt;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::path::{Path, PathBuf};
@@ -41,12 +42,19 @@ pub(crate) fn value_error(e: impl std::fmt::Display) -> PyErr {
 /// The task's training config: `config` (a TOML file like `policies/a1_model_free.toml`) or the
 /// defaults, for `task`, with `num_envs` environments.
 fn task_config(task: &str, config: Option<&Path>, num_envs: usize) -> PyResult<TrainConfig> {
-    let kind: TaskKind = task.parse().map_err(value_error)?;
-    if kind == TaskKind::CartPole {
-        return Err(value_error(
-            "task 'cart-pole' is PPO's own test task, not exposed: allowed model-free, imitation, eemp-rl",
-        ));
-    }
+    let kind = match task.parse::<TaskKind>() {
+        Ok(TaskKind::CartPole) => {
+            return Err(value_error(
+                "task 'cart-pole' is PPO's own test task, not exposed: allowed model-free, imitation, eemp-rl",
+            ))
+        }
+        Ok(k) => k,
+        Err(_) => {
+            return Err(value_error(format!(
+                "unknown task '{task}': allowed model-free, imitation, eemp-rl"
+            )))
+        }
+    };
     if !(1..=65536).contains(&num_envs) {
         return Err(value_error(format!(
             "num_envs {num_envs} is out of range: allowed [1, 65536]"
@@ -88,6 +96,12 @@ pub fn build(
     }
     let mut c = task_config(task, config, num_envs)?;
     c.seed = seed;
+    if motion.is_some() && c.task != TaskKind::Imitation {
+        return Err(value_error(format!(
+            "motion is for the imitation task, not '{}'",
+            c.task.name()
+        )));
+    }
     let robot = RobotConfig::a1();
     let m = if c.task != TaskKind::Imitation {
         None
@@ -128,10 +142,14 @@ pub struct PyVecEnv {
 }
 
 impl PyVecEnv {
-    fn lock(&self) -> std::sync::MutexGuard<'_, AnyVecEnv> {
+    /// Waits for the environments with the GIL released (another Python thread may be
+    /// stepping them with the GIL released too: waiting with it held would deadlock both).
+    fn lock(&self, py: Python<'_>) -> std::sync::MutexGuard<'_, AnyVecEnv> {
         // A panic inside a step (turned into a Python exception) leaves the data as it was;
         // the next reset starts clean episodes.
-        self.inner.lock().unwrap_or_else(|p| p.into_inner())
+        self.inner
+            .lock_py_attached(py)
+            .unwrap_or_else(|p| p.into_inner())
     }
 }
 
@@ -217,7 +235,7 @@ impl PyVecEnv {
         py: Python<'py>,
         seeds: Option<Vec<u64>>,
     ) -> PyResult<Bound<'py, PyArray2<f32>>> {
-        let mut g = self.lock();
+        let mut g = self.lock(py);
         let any = &mut *g;
         py.detach(|| match seeds {
             Some(s) => with_env!(any, v => v.reseed(&s)),
@@ -232,7 +250,7 @@ impl PyVecEnv {
 
     /// The current observations (after an auto-reset: the new episodes' first ones).
     fn observations<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
-        let g = self.lock();
+        let g = self.lock(py);
         self.obs_array(py, with_env!(&*g, v => &v.obs))
     }
 
@@ -262,13 +280,11 @@ impl PyVecEnv {
                 "actions have shape {dims:?}, expected [{n}, {a}] (num_envs × act_dim)"
             )));
         }
-        let owned;
-        let flat: &[f32] = match actions.as_slice() {
-            Ok(s) => s,
-            Err(_) => {
-                owned = actions.as_array().iter().copied().collect::<Vec<f32>>();
-                &owned
-            }
+        // A copy: other Python threads run while the environments step and could write to
+        // the caller's array (and slip a NaN past the check below).
+        let flat: Vec<f32> = match actions.as_slice() {
+            Ok(sl) => sl.to_vec(),
+            Err(_) => actions.as_array().iter().copied().collect(),
         };
         if let Some(i) = flat.iter().position(|x| !x.is_finite()) {
             return Err(value_error(format!(
@@ -278,9 +294,9 @@ impl PyVecEnv {
                 flat[i]
             )));
         }
-        let mut g = self.lock();
+        let mut g = self.lock(py);
         let any = &mut *g;
-        py.detach(|| with_env!(any, v => v.step(flat)));
+        py.detach(|| with_env!(any, v => v.step(&flat)));
         with_env!(&*g, v => {
             let rewards: Vec<f64> = v.infos.iter().map(|i| i.reward).collect();
             let term: Vec<bool> = v.infos.iter().map(|i| i.terminated).collect();
@@ -315,7 +331,8 @@ pub fn env_seed_of(seed: u64, index: usize) -> u64 {
 
 /// The Rust-only reference of a rollout: the task's environments built and stepped by
 /// `eemp-rl` alone (as `eemp train` does, seeded `seed`), with `actions` (T × num_envs ×
-/// act_dim). Returns (obs (T+1) × N × D, rewards T × N, terminated T × N, truncated T × N).
+/// act_dim). Returns (obs (T+1) × N × D, rewards T × N, terminated T × N, truncated T × N,
+/// final obs T × N × D: the last observation of each episode that ended, zeros elsewhere).
 #[pyfunction]
 #[pyo3(signature = (task, seed, actions, config = None))]
 #[allow(clippy::type_complexity)]
@@ -330,25 +347,41 @@ pub fn rust_rollout<'py>(
     Bound<'py, PyArray2<f64>>,
     Bound<'py, PyArray2<bool>>,
     Bound<'py, PyArray2<bool>>,
+    Bound<'py, PyArray3<f32>>,
 )> {
-    let [t_len, n, _] = *actions.shape() else {
+    let [t_len, n, width] = *actions.shape() else {
         unreachable!("a 3-d array")
     };
     let acts = actions.as_array().to_owned();
     let (mut any, _) = build(task, n, seed, 1, config.as_deref(), None)?;
-    let (obs, rew, term, trunc, d) = py.detach(|| {
+    let act_dim = with_env!(&any, v => v.act_dim());
+    if width != act_dim {
+        return Err(value_error(format!(
+            "actions have shape [{t_len}, {n}, {width}], expected [T, {n}, {act_dim}]"
+        )));
+    }
+    let (obs, rew, term, trunc, finals, d) = py.detach(|| {
         with_env!(&mut any, v => {
+            let d = v.obs_dim();
             let mut obs = v.obs.clone();
-            let (mut rew, mut term, mut trunc) = (Vec::new(), Vec::new(), Vec::new());
+            let (mut rew, mut term, mut trunc, mut finals) =
+                (Vec::new(), Vec::new(), Vec::new(), Vec::new());
             for t in 0..t_len {
                 let a: Vec<f32> = acts.index_axis(numpy::ndarray::Axis(0), t).iter().copied().collect();
                 v.step(&a);
                 obs.extend_from_slice(&v.obs);
-                rew.extend(v.infos.iter().map(|i| i.reward));
-                term.extend(v.infos.iter().map(|i| i.terminated));
-                trunc.extend(v.infos.iter().map(|i| i.truncated));
+                for (i, info) in v.infos.iter().enumerate() {
+                    rew.push(info.reward);
+                    term.push(info.terminated);
+                    trunc.push(info.truncated);
+                    if info.terminated || info.truncated {
+                        finals.extend_from_slice(&v.final_obs[i * d..(i + 1) * d]);
+                    } else {
+                        finals.extend(std::iter::repeat_n(0.0, d));
+                    }
+                }
             }
-            (obs, rew, term, trunc, v.obs_dim())
+            (obs, rew, term, trunc, finals, d)
         })
     });
     Ok((
@@ -356,6 +389,7 @@ pub fn rust_rollout<'py>(
         PyArray1::from_vec(py, rew).reshape([t_len, n])?,
         PyArray1::from_vec(py, term).reshape([t_len, n])?,
         PyArray1::from_vec(py, trunc).reshape([t_len, n])?,
+        PyArray1::from_vec(py, finals).reshape([t_len, n, d])?,
     ))
 }
 

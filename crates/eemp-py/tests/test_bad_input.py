@@ -12,12 +12,20 @@ def test_unknown_task():
         eemp.make_env("A1Fly-v0")
     with pytest.raises(ValueError, match="cart-pole"):
         _eemp.VecEnv("cart-pole")
+    with pytest.raises(ValueError, match="unknown task 'fly': allowed model-free, imitation, eemp-rl"):
+        _eemp.VecEnv("fly")
+    with pytest.raises(ValueError, match="motion is for the imitation task"):
+        eemp.make_env("A1ModelFree-v0", motion="motions/a1_trot.csv")
 
 
 @pytest.mark.parametrize("num_envs", [0, 100000])
 def test_num_envs_out_of_range(num_envs):
     with pytest.raises(ValueError, match=r"num_envs .* out of range: allowed \[1, 65536\]"):
         _eemp.VecEnv("model-free", num_envs=num_envs)
+    with pytest.raises(ValueError, match=r"num_envs .* out of range"):
+        eemp.make_vec_env("A1ModelFree-v0", num_envs)
+    with pytest.raises(ValueError, match=r"threads 0 is out of range"):
+        eemp.make_vec_env("A1ModelFree-v0", 2, threads=0)
 
 
 def test_wrong_action_shape_dtype_and_nan():
@@ -56,6 +64,8 @@ def test_raw_module_checks_too():
         v.step(np.zeros((2, 12), np.float64))
     with pytest.raises(ValueError, match="3 seeds for 2 environments"):
         v.reset([1, 2, 3])
+    with pytest.raises(ValueError, match=r"shape \[4, 2, 5\], expected \[T, 2, 12\]"):
+        _eemp.rust_rollout("model-free", 0, np.zeros((4, 2, 5), np.float32))
 
 
 def test_step_before_reset():
@@ -87,6 +97,11 @@ def test_controller_and_walk_arguments():
         c.step(0.0, z3, np.array([1.0, 0, 0, 0]), z3, z3, np.zeros(11), z12)
     with pytest.raises(ValueError, match=r"v_world\[1\] is NaN"):
         c.step(0.0, z3, np.array([1.0, 0, 0, 0]), np.array([0, np.nan, 0]), z3, z12, z12)
+    with pytest.raises((TypeError, ValueError), match="'q'"):
+        c.step(0.0, z3, [1.0, 0, 0, 0], z3, z3, "twelve", z12)
+    # Lists and float32 arrays are numbers too.
+    tau = c.step(0.0, [0, 0, 0.3], [1, 0, 0, 0], z3, z3, np.zeros(12, np.float32), [0.0] * 12)
+    assert tau.shape == (12,)
     with pytest.raises(ValueError, match="unknown gait 'gallop'"):
         eemp.EempController(gait="gallop")
     with pytest.raises(ValueError, match="unknown estimator 'oracle'"):

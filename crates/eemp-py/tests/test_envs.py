@@ -24,26 +24,28 @@ def test_gymnasium_checker_passes(task):
 
 
 def python_rollout(env, seed, actions):
-    """Observations after every step as Rust's auto-resetting loop sees them."""
+    """Observations after every step as Rust's auto-resetting loop sees them, and the final
+    observation of each step that ended an episode (zeros elsewhere)."""
     obs, _ = env.reset(seed=seed)
-    seen, rewards, term, trunc = [obs], [], [], []
+    seen, rewards, term, trunc, finals = [obs], [], [], [], []
     for a in actions:
         o, r, te, tr, _ = env.step(a)
+        finals.append(o if te or tr else np.zeros_like(o))
         if te or tr:
             o, _ = env.reset()  # the episode Rust already started
         seen.append(o)
         rewards.append(r)
         term.append(te)
         trunc.append(tr)
-    return np.array(seen), np.array(rewards), np.array(term), np.array(trunc)
+    return np.array(seen), np.array(rewards), np.array(term), np.array(trunc), np.array(finals)
 
 
 @pytest.mark.parametrize("task,steps", [("A1ModelFree-v0", 120), ("A1Imitation-v0", 60), ("A1EempRl-v0", 12)])
 def test_python_rollout_is_the_rust_rollout_bit_for_bit(task, steps):
     env = eemp.make_env(task)
     actions = np.random.default_rng(5).uniform(-1, 1, (steps, env.action_space.shape[0])).astype(np.float32)
-    obs, rew, term, trunc = python_rollout(env, eemp.env_seed(11, 0), actions)
-    r_obs, r_rew, r_term, r_trunc = _eemp.rust_rollout(eemp.TASKS[task], 11, actions[:, None, :])
+    obs, rew, term, trunc, _ = python_rollout(env, eemp.env_seed(11, 0), actions)
+    r_obs, r_rew, r_term, r_trunc, _ = _eemp.rust_rollout(eemp.TASKS[task], 11, actions[:, None, :])
     assert np.array_equal(obs, r_obs[:, 0, :])
     assert np.array_equal(rew, r_rew[:, 0])
     assert np.array_equal(term, r_term[:, 0])
@@ -55,10 +57,12 @@ def test_rollout_through_episode_ends_is_bit_for_bit(tmp_path):
     config.write_text(SHORT_EPISODES)
     env = eemp.make_env("A1ModelFree-v0", config=str(config))
     actions = np.random.default_rng(6).uniform(-1, 1, (80, 12)).astype(np.float32)
-    obs, rew, term, trunc = python_rollout(env, eemp.env_seed(3, 0), actions)
+    obs, rew, term, trunc, finals = python_rollout(env, eemp.env_seed(3, 0), actions)
     assert trunc.sum() >= 2, "25-step episodes must end within 80 steps"
-    r_obs, r_rew, _, r_trunc = _eemp.rust_rollout("model-free", 3, actions[:, None, :], config=str(config))
+    r_obs, r_rew, _, r_trunc, r_finals = _eemp.rust_rollout("model-free", 3, actions[:, None, :], config=str(config))
     assert np.array_equal(obs, r_obs[:, 0, :])
+    assert np.array_equal(finals, r_finals[:, 0, :]), "step() returns the ended episode's last observation"
+    assert not np.array_equal(finals[trunc], obs[1:][trunc]), "and not the next episode's first"
     assert np.array_equal(rew, r_rew[:, 0])
     assert np.array_equal(trunc, r_trunc[:, 0])
 
@@ -66,9 +70,9 @@ def test_rollout_through_episode_ends_is_bit_for_bit(tmp_path):
 def test_same_seed_same_rollout_and_seeds_matter():
     env = eemp.make_env("A1ModelFree-v0")
     actions = np.random.default_rng(1).uniform(-1, 1, (30, 12)).astype(np.float32)
-    a = python_rollout(env, 4, actions)
-    b = python_rollout(env, 4, actions)
-    c = python_rollout(env, 5, actions)
+    a = python_rollout(env, 4, actions)[:4]
+    b = python_rollout(env, 4, actions)[:4]
+    c = python_rollout(env, 5, actions)[:4]
     assert all(np.array_equal(x, y) for x, y in zip(a, b))
     assert not np.array_equal(a[0], c[0])
 
@@ -92,13 +96,14 @@ def test_vector_env_equals_n_single_envs_whatever_the_threads(tmp_path):
             assert p is None or np.array_equal(p, q)
     for i in range(n):
         single = eemp.make_env("A1ModelFree-v0", config=str(config))
-        obs, rew, term, trunc = python_rollout(single, eemp.env_seed(seed, i), actions[:, i, :])
+        obs, rew, term, trunc, finals = python_rollout(single, eemp.env_seed(seed, i), actions[:, i, :])
         assert np.array_equal(obs[0], runs[0][0][0][i])
         for t in range(steps):
             o, r, te, tr, final = runs[0][t + 1]
             assert r[i] == rew[t] and te[i] == term[t] and tr[i] == trunc[t]
             assert np.array_equal(o[i], obs[t + 1])
-    assert any(run[4].any() for run in runs[0][1:]), "some episode must end in the window"
+            assert np.array_equal(final[i], finals[t])
+    assert any((run[2] | run[3]).any() for run in runs[0][1:]), "some episode must end in the window"
 
 
 def test_vector_env_is_the_rust_trainers_seeding():
@@ -110,6 +115,7 @@ def test_vector_env_is_the_rust_trainers_seeding():
     for a in actions:
         seen.append(v.step(a)[0])
     r_obs, *_ = _eemp.rust_rollout("model-free", seed, actions)
+    assert r_obs.shape == (11, n, 96)
     assert np.array_equal(np.array(seen), r_obs)
 
 
@@ -124,8 +130,47 @@ def test_final_obs_and_truncation_in_vector_env(tmp_path):
         obs, rew, term, trunc, info = v.step(zero)
         assert not term.any(), "standing still does not fall"
         assert np.array_equal(info["_final_obs"], trunc)
-        for i in np.nonzero(trunc)[0]:
-            ends[i] += 1
-            assert not np.array_equal(info["final_obs"][i], obs[i]), "obs is the new episode's first"
+        for i in range(2):
+            if trunc[i]:
+                ends[i] += 1
+                assert not np.array_equal(info["final_obs"][i], obs[i]), "obs is the new episode's first"
+            else:
+                assert not info["final_obs"][i].any(), "rows of running episodes are zero"
     # 25-step episodes (the first ones start at a random step, as in training).
     assert (ends >= 1).all() and (ends <= 2).all()
+
+
+def test_two_python_threads_on_one_vector_env_do_not_deadlock():
+    # Each step releases the GIL while Rust steps; a second thread waiting for the environments
+    # must wait without it. Run in a child interpreter: a deadlock would freeze this one.
+    import subprocess
+    import sys
+
+    code = """
+import threading, numpy as np, eemp
+v = eemp.make_vec_env("A1ModelFree-v0", 16, threads=2)
+v.reset(seed=0)
+def work():
+    for _ in range(20):
+        v.step(np.zeros((16, 12), np.float32))
+        v.observations() if hasattr(v, "observations") else None
+ts = [threading.Thread(target=work) for _ in range(3)]
+[t.start() for t in ts]
+[t.join() for t in ts]
+print("done")
+"""
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0 and out.stdout.strip() == "done", out.stderr
+
+
+def test_seeds_of_the_vector_env():
+    v = eemp.make_vec_env("A1ModelFree-v0", 2)
+    a, _ = v.reset(seed=[5, None])
+    b, _ = eemp.make_env("A1ModelFree-v0").reset(seed=5)
+    assert np.array_equal(a[0], b)
+    with pytest.raises(ValueError, match="non-negative"):
+        v.reset(seed=-1)
+    with pytest.raises(ValueError, match="list of 2"):
+        v.reset(seed=[1, 2, 3])
+    first = [eemp.make_vec_env("A1ModelFree-v0", 2).reset()[0] for _ in range(2)]
+    assert not np.array_equal(first[0], first[1]), "unseeded first resets draw their seeds"

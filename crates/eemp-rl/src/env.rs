@@ -316,6 +316,7 @@ fn step_slot<E: Env>(
     s.episode_len += 1;
     if info.terminated || info.truncated {
         final_obs.copy_from_slice(obs);
+        sanitize(final_obs);
         s.env.reset(&mut s.rng, obs);
         sanitize(obs);
     }

@@ -8,7 +8,8 @@ Seeding: `A1Env.reset(seed=s)` seeds the environment's RNG (ChaCha8) with `s`;
 reset with seed s steps like an `A1Env` reset with seed `env_seed(s, i)`.
 
 Episode ends: the Rust tasks start the next episode in the same step (gymnasium's SAME_STEP
-autoreset). `A1Env.step` returns the final observation of the ended episode; the `reset()`
+autoreset; `info["final_obs"]` is an (N, obs_dim) array, zero in the rows of sub-envs whose
+episode goes on, `info["_final_obs"]` says which rows hold one). `A1Env.step` returns the final observation of the ended episode; the `reset()`
 that follows (without a seed) hands back the first observation of the episode Rust already
 started, so a Python rollout is the Rust rollout step for step.
 """
@@ -116,7 +117,12 @@ class A1VectorEnv(gym.vector.VectorEnv):
         config: str | None = None,
         motion: str | None = None,
     ):
-        threads = threads or min(num_envs, os.cpu_count() or 1)
+        if not isinstance(num_envs, (int, np.integer)) or not 1 <= num_envs <= 65536:
+            raise ValueError(f"num_envs {num_envs!r} is out of range: allowed an int in [1, 65536]")
+        if threads is None:
+            threads = min(num_envs, os.cpu_count() or 1)
+        elif not isinstance(threads, (int, np.integer)) or not 1 <= threads <= 1024:
+            raise ValueError(f"threads {threads!r} is out of range: allowed an int in [1, 1024]")
         self._v = _eemp.VecEnv(_task(task), num_envs=num_envs, seed=0, threads=threads, config=config, motion=motion)
         self.num_envs = num_envs
         self.single_observation_space, self.single_action_space = _spaces(self._v)
@@ -125,19 +131,30 @@ class A1VectorEnv(gym.vector.VectorEnv):
         self.reward_terms = self._v.reward_terms
         self._ready = False
 
-    def reset(self, *, seed: int | list[int] | None = None, options: dict | None = None):
-        if seed is None:
-            obs = self._v.reset() if self._ready else self._v.reset([_eemp.env_seed_of(0, i) for i in range(self.num_envs)])
-        elif isinstance(seed, (int, np.integer)):
+    def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None):
+        """seed: an int s (sub-env i gets `env_seed(s, i)`, as `eemp train`), a list of one seed
+        per sub-env (None: drawn from `np_random`), or None (the first reset draws seeds from
+        `np_random`; later ones continue each sub-env's RNG)."""
+        if isinstance(seed, (int, np.integer)):
+            if seed < 0:
+                raise ValueError(f"seed {seed} must be a non-negative int")
             self._np_random, self._np_random_seed = gym.utils.seeding.np_random(int(seed))
-            obs = self._v.reset([_eemp.env_seed_of(int(seed) % 2**64, i) for i in range(self.num_envs)])
+            obs = self._v.reset([_eemp.env_seed_of(int(seed), i) for i in range(self.num_envs)])
+        elif seed is None:
+            obs = self._v.reset() if self._ready else self._v.reset(self._drawn_seeds())
         else:
             seeds = list(seed)
-            if len(seeds) != self.num_envs or not all(isinstance(s, (int, np.integer)) for s in seeds):
-                raise ValueError(f"seed must be an int or a list of {self.num_envs} ints, got {seed!r}")
-            obs = self._v.reset([int(s) % 2**64 for s in seeds])
+            if len(seeds) != self.num_envs or not all(
+                s is None or (isinstance(s, (int, np.integer)) and s >= 0) for s in seeds
+            ):
+                raise ValueError(f"seed must be an int or a list of {self.num_envs} non-negative ints or None, got {seed!r}")
+            drawn = self._drawn_seeds()
+            obs = self._v.reset([drawn[i] if s is None else int(s) for i, s in enumerate(seeds)])
         self._ready = True
         return obs, {}
+
+    def _drawn_seeds(self) -> list[int]:
+        return [int(x) for x in self.np_random.integers(2**63, size=self.num_envs)]
 
     def step(self, actions):
         if not self._ready:
@@ -145,6 +162,7 @@ class A1VectorEnv(gym.vector.VectorEnv):
         a = _check_actions(actions, self.action_space.shape)
         obs, rew, term, trunc, final_obs, invalid, terms = self._v.step(a)
         ended = term | trunc
+        final_obs[~ended] = 0.0  # rows of sub-envs whose episode goes on carry nothing
         ones = np.ones(self.num_envs, dtype=bool)
         infos = {
             "final_obs": final_obs,
