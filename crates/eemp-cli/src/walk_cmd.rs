@@ -68,8 +68,9 @@ pub struct WalkArgs {
     /// Scenario file (scenarios/*.toml): `[terrain.rough]` amplitude_m/wavelength_m/seed/size_m,
     /// `[terrain.ramp]` start_x_m/grade/rise_m/plateau_m, `[terrain.step]` at_x_m/height_m,
     /// `[[terrain.friction_patch]]` x0_m/x1_m/width_m/friction, floor_friction, `[[push]]`
-    /// at_s/dv_mps, `[push_schedule]` first_s/every_s/dv_mps, payload_kg, `[sensors]` (noise
-    /// for --estimator kf). Applied on top of the other options.
+    /// at_s/dv_mps, `[push_schedule]` first_s/every_s/dv_mps, payload_kg, `[model_error]`
+    /// trunk_mass_scale/trunk_inertia_scale/motor_strength_scale, `[sensors]` (noise for
+    /// --estimator kf). Applied on top of the other options.
     #[arg(long)]
     pub scenario: Option<PathBuf>,
     /// Floor friction coefficient (slippery ground below ~0.4); default: the robot file's.

@@ -111,6 +111,9 @@ fn bad_training_and_policy_input_exits_2_names_the_file_and_writes_nothing() {
         "[terrain.rough]\namplitude_m = 0.5\nwavelength_m = 0.5\nseed = 1\n",
     )
     .unwrap();
+    let weak = dir.join("weak.toml");
+    std::fs::write(&weak, "[model_error]\nmotor_strength_scale = 3.0\n").unwrap();
+    let weak = weak.to_str().unwrap().to_string();
     let terrain_key = dir.join("terrain_key.toml");
     std::fs::write(&terrain_key, "[lava]\ndepth_m = 1\n").unwrap();
     let (terrain, terrain_key) = (terrain.to_str().unwrap(), terrain_key.to_str().unwrap());
@@ -120,10 +123,18 @@ fn bad_training_and_policy_input_exits_2_names_the_file_and_writes_nothing() {
         not_a_policy.to_str().unwrap(),
         missing.to_str().unwrap(),
     );
-    let cases: [(&[&str], &[&str]); 11] = [
+    let cases: [(&[&str], &[&str]); 12] = [
         (
             &["walk", "--scenario", terrain],
             &["terrain.toml", "terrain.rough.amplitude_m", "[0.001, 0.1]"],
+        ),
+        (
+            &["walk", "--scenario", &weak],
+            &[
+                "weak.toml",
+                "model_error.motor_strength_scale",
+                "[0.5, 1.5]",
+            ],
         ),
         (
             &["walk", "--scenario", terrain_key],

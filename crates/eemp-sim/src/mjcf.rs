@@ -21,6 +21,9 @@ pub struct SceneExtras {
     pub assets_xml: String,
     /// Height of the flat floor plane, m (lowered under a height field).
     pub floor_z_m: f64,
+    /// Torque the simulated motors deliver per commanded N·m (a torque-constant error; their
+    /// maximum scales with it); `None`: exactly as commanded.
+    pub motor_strength_scale: Option<f64>,
 }
 
 fn v3(v: [f64; 3]) -> String {
@@ -97,11 +100,21 @@ pub fn robot_mjcf(robot: &RobotConfig, extras: &SceneExtras) -> String {
     for leg in Leg::ALL {
         for j in ["hip", "thigh", "calf"] {
             let n = leg.short_name();
-            writeln!(
-                actuators,
-                r#"    <motor name="{n}_{j}" joint="{n}_{j}_joint" ctrlrange="{} {}"/>"#,
-                -l.torque_limit_nm, l.torque_limit_nm
-            )
+            let lim = l.torque_limit_nm;
+            match extras.motor_strength_scale {
+                // A motor is a general actuator with gain 1; a weaker or stronger one has gain k
+                // (MuJoCo's actuator force is then k·ctrl, so the applied torques say so too).
+                Some(k) => writeln!(
+                    actuators,
+                    r#"    <general name="{n}_{j}" joint="{n}_{j}_joint" gainprm="{k}" ctrllimited="true" ctrlrange="{} {lim}"/>"#,
+                    -lim
+                ),
+                None => writeln!(
+                    actuators,
+                    r#"    <motor name="{n}_{j}" joint="{n}_{j}_joint" ctrlrange="{} {lim}"/>"#,
+                    -lim
+                ),
+            }
             .unwrap();
         }
     }

@@ -1,11 +1,12 @@
 //! Scenario files (`scenarios/*.toml`): what the world does to a walk — terrain, floor friction,
-//! pushes (at given times or every few seconds), a payload, and the sensors' noise — in one
+//! pushes (at given times or every few seconds), a payload, errors of the robot's mass, inertia
+//! and motor strength (`[model_error]`), and the sensors' noise — in one
 //! validated file that `eemp walk --scenario FILE` applies to any controller.
 
 use crate::closed_loop::Push;
 use crate::sensors::SensorNoise;
 use crate::terrain::Terrain;
-use crate::walk::WalkSpec;
+use crate::walk::{ModelError, WalkSpec};
 use eemp_core::config_error::{check_range, ConfigError};
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
@@ -45,6 +46,9 @@ pub struct Scenario {
     /// Sensor noise for runs on the estimator; default: `SensorNoise::default()`.
     #[serde(default)]
     pub sensors: Option<SensorNoise>,
+    /// Trunk mass/inertia and motor strength errors of the simulated robot.
+    #[serde(default)]
+    pub model_error: ModelError,
 }
 
 impl Scenario {
@@ -65,6 +69,7 @@ impl Scenario {
             check_range("push_schedule.dv_mps", s.dv_mps, 0.0, 3.0)?;
         }
         check_range("payload_kg", self.payload_kg, 0.0, 10.0)?;
+        self.model_error.validate()?;
         if let Some(s) = &self.sensors {
             s.validate()?;
         }
@@ -115,6 +120,7 @@ impl Scenario {
         }
         spec.pushes.extend(self.pushes(spec.duration_s));
         spec.payload_kg = self.payload_kg;
+        spec.model_error = self.model_error;
     }
 }
 

@@ -6,6 +6,7 @@ use crate::closed_loop::{
     run_closed_loop, ClosedLoop, EstimationStats, FallLimits, LoopStats, Push, StateSource,
     StepRecord,
 };
+use crate::mjcf::SceneExtras;
 use crate::stand::ScenarioError;
 use crate::terrain::Terrain;
 use eemp_core::config_error::{check_range, ConfigError};
@@ -133,6 +134,66 @@ pub struct WalkSpec {
     pub terrain: Terrain,
     /// Mass added at the trunk's centre of mass, kg (the controllers keep the nominal model).
     pub payload_kg: f64,
+    /// How the simulated robot differs from the model the controllers were built from.
+    pub model_error: ModelError,
+}
+
+/// Errors of the simulated robot against the nominal model every controller is built from
+/// (the robot file): trunk mass and inertia, motor strength. Default: none.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ModelError {
+    /// Simulated trunk mass over the nominal one (the centre of mass stays), [0.5, 2].
+    pub trunk_mass_scale: f64,
+    /// Simulated trunk inertia about its centre of mass over the nominal one, [0.5, 2].
+    pub trunk_inertia_scale: f64,
+    /// Torque the simulated motors deliver per commanded N·m, [0.5, 1.5]; their maximum scales
+    /// with it (a torque-constant error, as a worn or cold motor).
+    pub motor_strength_scale: f64,
+}
+
+impl Default for ModelError {
+    fn default() -> Self {
+        ModelError {
+            trunk_mass_scale: 1.0,
+            trunk_inertia_scale: 1.0,
+            motor_strength_scale: 1.0,
+        }
+    }
+}
+
+impl ModelError {
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        check_range(
+            "model_error.trunk_mass_scale",
+            self.trunk_mass_scale,
+            0.5,
+            2.0,
+        )?;
+        check_range(
+            "model_error.trunk_inertia_scale",
+            self.trunk_inertia_scale,
+            0.5,
+            2.0,
+        )?;
+        check_range(
+            "model_error.motor_strength_scale",
+            self.motor_strength_scale,
+            0.5,
+            1.5,
+        )
+    }
+
+    /// The simulated robot: `robot` with these errors (the scene gets the motor strength).
+    pub fn apply(&self, robot: &mut RobotConfig, scene: &mut SceneExtras) {
+        robot.trunk.mass_kg *= self.trunk_mass_scale;
+        for i in &mut robot.trunk.inertia_kg_m2 {
+            *i *= self.trunk_inertia_scale;
+        }
+        if self.motor_strength_scale != 1.0 {
+            scene.motor_strength_scale = Some(self.motor_strength_scale);
+        }
+    }
 }
 
 impl WalkSpec {
@@ -157,6 +218,7 @@ impl WalkSpec {
             state_source: StateSource::GroundTruth,
             terrain: Terrain::default(),
             payload_kg: 0.0,
+            model_error: ModelError::default(),
         }
     }
 
@@ -200,6 +262,7 @@ impl WalkSpec {
         }
         self.terrain.validate()?;
         check_range("payload_kg", self.payload_kg, 0.0, 10.0)?;
+        self.model_error.validate()?;
         if let StateSource::Kf { kf, sensors, .. } = &self.state_source {
             kf.validate()?;
             sensors.validate()?;
@@ -368,10 +431,11 @@ pub fn run_walk_commanded(
     if let Some(mu) = spec.floor_friction {
         robot.simulation.floor_friction = mu;
     }
-    // The simulated robot carries the payload; `robot` (what the controllers were built from)
-    // does not know.
+    // The simulated robot carries the payload and has the model errors; `robot` (what the
+    // controllers were built from) does not know.
+    let mut scene = spec.terrain.scene(robot.simulation.floor_friction);
+    spec.model_error.apply(&mut robot, &mut scene);
     robot.trunk.mass_kg += spec.payload_kg;
-    let scene = spec.terrain.scene(robot.simulation.floor_friction);
     let mut sim = Simulation::new(&robot, &scene)?;
     reset_to_start(&mut sim, start, spec.seed);
     let kin = LegKinematics::new(&robot);

@@ -198,3 +198,43 @@ fn ground_truth_velocities_match_mujoco_object_velocity() {
         );
     }
 }
+
+#[test]
+fn model_errors_change_the_simulated_robot_only_as_stated() {
+    use eemp_sim::walk::ModelError;
+    let robot = RobotConfig::a1();
+    let error = ModelError {
+        trunk_mass_scale: 1.2,
+        trunk_inertia_scale: 1.3,
+        motor_strength_scale: 0.5,
+    };
+    let (mut sim_robot, mut scene) = (robot.clone(), SceneExtras::default());
+    error.apply(&mut sim_robot, &mut scene);
+    let mut sim = Simulation::new(&sim_robot, &scene).unwrap();
+    let nominal = Simulation::new(&robot, &SceneExtras::default()).unwrap();
+    let extra = 0.2 * robot.trunk.mass_kg;
+    assert!((sim.total_mass_kg() - nominal.total_mass_kg() - extra).abs() < 1e-9);
+    assert_eq!(
+        sim_robot.trunk.inertia_kg_m2[0],
+        1.3 * robot.trunk.inertia_kg_m2[0]
+    );
+    // Half the commanded torque, and the limit halves with it.
+    let limit = robot.leg.torque_limit_nm;
+    let mut tau = LegMap::splat(Vector3::new(4.0, -6.0, 2.0 * limit));
+    tau[Leg::RearLeft] = Vector3::new(-2.0 * limit, 1.0, 0.0);
+    sim.step_bare(&tau);
+    let applied = sim.applied_torques();
+    assert_eq!(
+        applied[Leg::FrontRight],
+        Vector3::new(2.0, -3.0, 0.5 * limit)
+    );
+    assert_eq!(applied[Leg::RearLeft], Vector3::new(-0.5 * limit, 0.5, 0.0));
+    // No error: the generated model is the nominal one (same MJCF, same torques).
+    let (mut same, mut scene) = (robot.clone(), SceneExtras::default());
+    ModelError::default().apply(&mut same, &mut scene);
+    assert_eq!(same, robot);
+    assert_eq!(
+        eemp_sim::mjcf::robot_mjcf(&same, &scene),
+        eemp_sim::mjcf::robot_mjcf(&robot, &SceneExtras::default())
+    );
+}
