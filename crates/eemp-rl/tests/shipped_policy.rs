@@ -1,4 +1,4 @@
-//! The shipped model-free and imitation policies walk on the evaluation model (1 ms steps, the robot file's
+//! The shipped model-free, imitation and EEMP-RL policies walk on the evaluation model (1 ms steps, the robot file's
 //! physics), through the same scenario and metrics code as EEMP.
 
 use eemp_core::planner::{PlannerConfig, PlannerParams, VelocityCommand};
@@ -85,4 +85,56 @@ fn the_shipped_imitation_policy_walks_5_s_at_0_5_m_per_s_in_the_dogs_trot() {
         "diagonal {diagonal} lateral {lateral} of {n}"
     );
     assert_eq!(c.invalid_steps, 0);
+}
+
+fn shipped_eemp_rl() -> (
+    RobotConfig,
+    eemp_rl::tasks::eemp_rl::EempRlController<Policy>,
+    StartPose,
+) {
+    use eemp_rl::tasks::eemp_rl::EempRlController;
+    let robot = RobotConfig::a1();
+    let path =
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../policies/a1_eemp_rl.safetensors");
+    let policy = Policy::load(&path, Some(TaskKind::EempRl)).unwrap();
+    let cfg = policy.config.eemp_rl.clone();
+    let start = EempRlController::<Policy>::start_pose(&robot, &cfg).unwrap();
+    let c = EempRlController::new(&robot, cfg, policy).unwrap();
+    (robot, c, start)
+}
+
+#[test]
+fn the_shipped_eemp_rl_policy_walks_5_s_at_0_5_m_per_s() {
+    let (robot, mut c, start) = shipped_eemp_rl();
+    let run = run_walk_with(&robot, &walk_spec(0.5, 5.0), &start, &mut c, |_| {}).unwrap();
+    assert!(!run.stats.fell, "fell at {:?}", run.stats.fell_at_s);
+    let rmse = run.metrics.vel_rmse_mps.unwrap();
+    assert!(rmse <= 0.1, "velocity RMSE {rmse} m/s");
+    assert!(
+        run.metrics.distance_m > 1.2,
+        "walked {} m",
+        run.metrics.distance_m
+    );
+}
+
+#[test]
+fn the_shipped_eemp_rl_policy_walks_0_to_1_to_0_m_per_s_in_one_run() {
+    let (robot, mut c, start) = shipped_eemp_rl();
+    let profile_file =
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../profiles/up-and-down.toml");
+    let mut spec = walk_spec(0.0, 20.0);
+    spec.profile = eemp_core::config_error::load_toml(&profile_file).unwrap();
+    spec.seed = 1;
+    let mut top_speed: f64 = 0.0;
+    let run = run_walk_with(&robot, &spec, &start, &mut c, |r| {
+        top_speed = top_speed.max(r.state.body.v_heading().x);
+    })
+    .unwrap();
+    assert!(!run.stats.fell, "fell at {:?}", run.stats.fell_at_s);
+    let rmse = run.metrics.vel_rmse_mps.unwrap();
+    assert!(rmse <= 0.15, "velocity RMSE {rmse} m/s over the profile");
+    assert!(
+        top_speed > 0.9,
+        "reached {top_speed} m/s of the 1.0 commanded"
+    );
 }

@@ -208,3 +208,45 @@ fn the_shipped_lookup_tables_load_and_walk_at_half_a_metre_per_second() {
         assert!(rmse < 0.1, "{file}: velocity RMSE {rmse} m/s at 0.5 m/s");
     }
 }
+
+#[test]
+fn eemp_analytical_walks_0_to_1_to_0_m_per_s_on_the_estimator_with_gait_changes() {
+    // The free gait with its table (EEMP-Analytical) on the shipped profile, on the Kalman
+    // filter with default sensor noise: no fall, and its swings change as the speed does.
+    use eemp_core::planner::params_table::ParamsTable;
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let robot = RobotConfig::a1();
+    let mut s = spec(Gait::Free, 0.0, 20.0, PlannerParams::default());
+    s.params_table = Some(ParamsTable::load(&root.join("tables/a1_free.toml")).unwrap());
+    s.profile =
+        eemp_core::config_error::load_toml(&root.join("profiles/up-and-down.toml")).unwrap();
+    s.seed = 2;
+    s.state_source = eemp_sim::closed_loop::StateSource::Kf {
+        kf: eemp_core::estimator::KfConfig {
+            foot_height_m: robot.leg.foot_radius_m,
+            ..Default::default()
+        },
+        sensors: eemp_sim::sensors::SensorNoise::default(),
+        seed: 2,
+    };
+    // Legs lifting together at each swing start: 1 (single-leg swings) or 2 (pairs).
+    let (mut singles, mut pairs, mut prev) = (0usize, 0usize, [true; 4]);
+    let run = run_walk(&robot, &s, |r| {
+        let stance = r.plan.map(|p| p.stance.0).unwrap_or([true; 4]);
+        let lifted = (0..4).filter(|&i| prev[i] && !stance[i]).count();
+        match lifted {
+            1 => singles += 1,
+            2 => pairs += 1,
+            _ => {}
+        }
+        prev = stance;
+    })
+    .unwrap();
+    assert!(!run.stats.fell, "fell at {:?}", run.stats.fell_at_s);
+    let rmse = run.metrics.vel_rmse_mps.unwrap();
+    assert!(rmse < 0.15, "velocity RMSE {rmse} m/s over the profile");
+    assert!(
+        singles > 5 && pairs > 5,
+        "single-leg swings {singles}, pair swings {pairs}"
+    );
+}
