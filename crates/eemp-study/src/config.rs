@@ -13,6 +13,7 @@
 //! duration_s = 20.0                                     # simulated seconds per run, 1–3600
 //! seeds = [0]                                           # 0 = unperturbed start
 //! progress_factor = { walk = 1.5 }                      # optional: eq. (6)'s factor per gait
+//! estimator = "kf"                                       # optional: runs on the Kalman filter
 //!
 //! [selection]                                           # optional, these are the defaults
 //! max_vel_rmse_mps = 0.25
@@ -90,6 +91,26 @@ pub struct Grid {
     /// Gaits not in `gaits` keep the default.
     #[serde(skip_serializing_if = "ProgressFactors::is_default")]
     pub progress_factor: ProgressFactors,
+    /// What every run's controller sees: the simulator's state (default) or the Kalman filter
+    /// on the simulated IMU and encoders with the default sensor noise, seeded by the run's
+    /// seed. A setting like `progress_factor`, stored in `sweep.toml`.
+    #[serde(skip_serializing_if = "SweepEstimator::is_ground_truth")]
+    pub estimator: SweepEstimator,
+}
+
+/// The state source of a sweep's runs (`[grid] estimator = "ground-truth" | "kf"`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum SweepEstimator {
+    #[default]
+    GroundTruth,
+    Kf,
+}
+
+impl SweepEstimator {
+    pub fn is_ground_truth(&self) -> bool {
+        *self == SweepEstimator::GroundTruth
+    }
 }
 
 /// Eq. (6)'s factor on V·ΔT per gait (`PlannerConfig::progress_factor`); default 0.5 (the
@@ -215,6 +236,12 @@ impl Grid {
         if self.seeds != other.seeds {
             out.push(format!("seeds: {:?} vs {:?}", self.seeds, other.seeds));
         }
+        if self.estimator != other.estimator {
+            out.push(format!(
+                "estimator: {:?} vs {:?}",
+                self.estimator, other.estimator
+            ));
+        }
         if self.progress_factor != other.progress_factor {
             out.push(format!(
                 "progress_factor: {:?} vs {:?}",
@@ -276,7 +303,18 @@ impl SweepConfig {
         let v = Validator { path };
         let g = &raw.grid;
         let gaits = v.gaits(&g.gaits)?;
+        let estimator = match g.estimator.as_deref() {
+            None | Some("ground-truth") => SweepEstimator::GroundTruth,
+            Some("kf") => SweepEstimator::Kf,
+            Some(other) => {
+                return Err(v.error(
+                    "grid.estimator",
+                    format!("unknown estimator '{other}': allowed ground-truth, kf"),
+                ))
+            }
+        };
         let grid = Grid {
+            estimator,
             progress_factor: v.progress_factor(g.progress_factor.as_ref(), &gaits)?,
             gaits,
             speed_mps: v.axis("speed_mps", &g.speed_mps, table_i::SPEED_MPS, "m/s")?,
@@ -612,6 +650,8 @@ struct RawGrid {
     /// `1.0` (every gait) or `{ walk = 1.5 }` (per gait); read by hand for clear errors.
     #[serde(default)]
     progress_factor: Option<toml::Value>,
+    #[serde(default)]
+    estimator: Option<String>,
 }
 
 #[derive(Deserialize, Default)]
@@ -937,6 +977,32 @@ seeds = [0, 1]
         big.ellipse_ry_m = vec![0.1; 1 << 20];
         assert_eq!(big.checked_run_count(), None);
         assert_eq!(big.run_count(), usize::MAX);
+    }
+
+    #[test]
+    fn the_estimator_is_a_stored_setting_and_checked() {
+        let with = |line: &str| parse(&format!("{GOOD}{line}\n"));
+        let gt = with("").unwrap();
+        assert_eq!(gt.grid.estimator, SweepEstimator::GroundTruth);
+        assert!(
+            !gt.to_toml().contains("estimator"),
+            "the default stores nothing"
+        );
+        let kf = with("estimator = \"kf\"").unwrap();
+        assert_eq!(kf.grid.estimator, SweepEstimator::Kf);
+        assert_eq!(parse(&kf.to_toml()).unwrap(), kf);
+        assert!(kf
+            .grid
+            .differences(&gt.grid)
+            .iter()
+            .any(|d| d.starts_with("estimator")));
+        let err = with("estimator = \"oracle\"").unwrap_err().to_string();
+        assert!(
+            err.contains("grid.estimator")
+                && err.contains("oracle")
+                && err.contains("ground-truth, kf"),
+            "{err}"
+        );
     }
 
     #[test]

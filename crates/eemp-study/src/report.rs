@@ -379,28 +379,36 @@ pub fn build(input: ReportInput) -> Document {
     b.push(Block::Heading(1, "Grid".into()));
     let gaits: Vec<String> = g.gaits.iter().map(Gait::to_string).collect();
     let seeds: Vec<String> = g.seeds.iter().map(u64::to_string).collect();
+    let mut grid_rows = vec![
+        vec!["gaits".into(), gaits.join(", "), gaits.len().to_string()],
+        axis_row("speed V_x,des [m/s]", &g.speed_mps),
+        axis_row("swing time ΔT [s]", &g.swing_time_s),
+        axis_row("step height h_step [m]", &g.step_height_m),
+        axis_row("body height X_z [m]", &g.body_height_m),
+        axis_row("ellipse r_x [m]", &g.ellipse_rx_m),
+        axis_row("ellipse r_y [m]", &g.ellipse_ry_m),
+        vec!["duration [s]".into(), g.duration_s.to_string(), "1".into()],
+        vec!["seeds".into(), seeds.join(", "), seeds.len().to_string()],
+        vec![
+            "eq. (6) progress factor (a setting, not an axis)".into(),
+            g.gaits
+                .iter()
+                .map(|&gait| format!("{gait} {}", g.progress_factor.get(gait)))
+                .collect::<Vec<_>>()
+                .join(", "),
+            "1".into(),
+        ],
+    ];
+    if g.estimator == crate::config::SweepEstimator::Kf {
+        grid_rows.push(vec![
+            "state source (a setting, not an axis)".into(),
+            "Kalman filter, default sensor noise seeded by the run's seed".into(),
+            "1".into(),
+        ]);
+    }
     b.push(Block::Table {
         header: vec!["axis".into(), "values".into(), "count".into()],
-        rows: vec![
-            vec!["gaits".into(), gaits.join(", "), gaits.len().to_string()],
-            axis_row("speed V_x,des [m/s]", &g.speed_mps),
-            axis_row("swing time ΔT [s]", &g.swing_time_s),
-            axis_row("step height h_step [m]", &g.step_height_m),
-            axis_row("body height X_z [m]", &g.body_height_m),
-            axis_row("ellipse r_x [m]", &g.ellipse_rx_m),
-            axis_row("ellipse r_y [m]", &g.ellipse_ry_m),
-            vec!["duration [s]".into(), g.duration_s.to_string(), "1".into()],
-            vec!["seeds".into(), seeds.join(", "), seeds.len().to_string()],
-            vec![
-                "eq. (6) progress factor (a setting, not an axis)".into(),
-                g.gaits
-                    .iter()
-                    .map(|&gait| format!("{gait} {}", g.progress_factor.get(gait)))
-                    .collect::<Vec<_>>()
-                    .join(", "),
-                "1".into(),
-            ],
-        ],
+        rows: grid_rows,
     });
 
     b.push(Block::Heading(1, "Summary".into()));

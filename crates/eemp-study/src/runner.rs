@@ -1,12 +1,15 @@
 //! Running a sweep: the runs of the grid (or of one shard) that `results.csv` does not hold yet,
 //! in canonical order on a rayon pool, each row appended the moment its run ends.
 
-use crate::config::{Grid, ProgressFactors, SweepConfig};
+use crate::config::{Grid, ProgressFactors, SweepConfig, SweepEstimator};
 use crate::error::StudyError;
 use crate::grid::{RunSpec, Shard};
 use crate::store::{append_sessions, ResultRow, ResultStore, RunOutcome, SessionRow};
+use eemp_core::estimator::KfConfig;
 use eemp_core::planner::{PlannerConfig, VelocityCommand};
 use eemp_core::robot::RobotConfig;
+use eemp_sim::closed_loop::StateSource;
+use eemp_sim::sensors::SensorNoise;
 use eemp_sim::walk::{run_walk, WalkRun, WalkSpec};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::iter::{ParallelBridge, ParallelIterator};
@@ -19,8 +22,14 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 /// The walking run of one grid point and seed: the A1 from rest, a constant forward command
 /// from 0.5 s on, metrics from min(2 s, duration/2) (see `WalkSpec::constant`), eq. (6)'s
-/// progress factor of the point's gait from `factors`.
-pub fn walk_spec(spec: &RunSpec, factors: &ProgressFactors) -> WalkSpec {
+/// progress factor of the point's gait from `factors`, on the grid's `estimator` (the Kalman
+/// filter's sensor noise seeded by the run's seed).
+pub fn walk_spec(
+    spec: &RunSpec,
+    factors: &ProgressFactors,
+    estimator: SweepEstimator,
+    robot: &RobotConfig,
+) -> WalkSpec {
     let p = &spec.point;
     let mut walk = WalkSpec::constant(
         PlannerConfig {
@@ -36,20 +45,35 @@ pub fn walk_spec(spec: &RunSpec, factors: &ProgressFactors) -> WalkSpec {
         p.duration_s,
     );
     walk.seed = spec.seed;
+    if estimator == SweepEstimator::Kf {
+        walk.state_source = StateSource::Kf {
+            kf: KfConfig {
+                foot_height_m: robot.leg.foot_radius_m,
+                ..Default::default()
+            },
+            sensors: SensorNoise::default(),
+            seed: spec.seed,
+        };
+    }
     walk
 }
 
-/// The runner `eemp sweep` uses: each run in MuJoCo, with the grid's progress factors.
+/// The runner `eemp sweep` uses: each run in MuJoCo, with the grid's progress factors and
+/// estimator.
 pub fn simulator(grid: &Grid) -> impl Fn(&RunSpec) -> RunOutcome + Sync {
-    let factors = grid.progress_factor;
-    move |spec| simulate(spec, &factors)
+    let (factors, estimator) = (grid.progress_factor, grid.estimator);
+    move |spec| simulate(spec, &factors, estimator)
 }
 
 /// Runs one grid point in MuJoCo.
-pub fn simulate(spec: &RunSpec, factors: &ProgressFactors) -> RunOutcome {
+pub fn simulate(
+    spec: &RunSpec,
+    factors: &ProgressFactors,
+    estimator: SweepEstimator,
+) -> RunOutcome {
     static A1: OnceLock<RobotConfig> = OnceLock::new();
     let robot = A1.get_or_init(RobotConfig::a1);
-    let walk = walk_spec(spec, factors);
+    let walk = walk_spec(spec, factors, estimator, robot);
     match run_walk(robot, &walk, |_| {}) {
         Ok(run) => outcome_of(&run, walk.metrics_start_s),
         Err(e) => RunOutcome::failed(e.to_string()),
@@ -373,15 +397,24 @@ mod tests {
             },
             seed: 7,
         };
-        let walk = walk_spec(&spec(Gait::Walk), &factors);
+        let robot = RobotConfig::a1();
+        let gt = SweepEstimator::GroundTruth;
+        let walk = walk_spec(&spec(Gait::Walk), &factors, gt, &robot);
         assert_eq!(walk.planner.progress_factor, 1.5);
         assert_eq!(walk.planner.gait, Gait::Walk);
         assert_eq!(walk.seed, 7);
+        assert_eq!(walk.state_source, StateSource::GroundTruth);
         assert_eq!(
-            walk_spec(&spec(Gait::Trot), &factors)
+            walk_spec(&spec(Gait::Trot), &factors, gt, &robot)
                 .planner
                 .progress_factor,
             0.5
         );
+        // On the filter, the sensor noise is seeded by the run's seed.
+        let kf = walk_spec(&spec(Gait::Trot), &factors, SweepEstimator::Kf, &robot);
+        match kf.state_source {
+            StateSource::Kf { seed, .. } => assert_eq!(seed, 7),
+            other => panic!("expected the Kalman filter, got {other:?}"),
+        }
     }
 }
