@@ -2,7 +2,7 @@
 //! and the controllers read the same numbers.
 //!
 //! Modelling choices (beyond Menagerie's A1): torque-controlled `motor` actuators with the
-//! config's torque limit; one capsule per thigh and calf and a box trunk as collision shapes;
+//! config's torque limit (`general` actuators with gain k under a motor-strength error); one capsule per thigh and calf and a box trunk as collision shapes;
 //! robot geoms collide with the floor only (no leg–leg contacts: the planner never crosses legs,
 //! and it saves collision checks); the floor has contact priority, so its friction is the one
 //! used by every foot (that is what makes `floor_friction` the knob for slippery ground);

@@ -212,11 +212,25 @@ fn model_errors_change_the_simulated_robot_only_as_stated() {
     error.apply(&mut sim_robot, &mut scene);
     let mut sim = Simulation::new(&sim_robot, &scene).unwrap();
     let nominal = Simulation::new(&robot, &SceneExtras::default()).unwrap();
-    let extra = 0.2 * robot.trunk.mass_kg;
-    assert!((sim.total_mass_kg() - nominal.total_mass_kg() - extra).abs() < 1e-9);
-    assert_eq!(
-        sim_robot.trunk.inertia_kg_m2[0],
-        1.3 * robot.trunk.inertia_kg_m2[0]
+    // What MuJoCo built: the trunk's mass ×1.2 and its inertia (trace of the principal
+    // moments) ×1.3, every other body as before.
+    use mujoco_rs::prelude::MjtObjBase;
+    let trunk = |s: &Simulation| {
+        let m = s.model();
+        let id = m.name_to_id(MjtObjBase::mjOBJ_BODY, "trunk").unwrap();
+        let i = m.body_inertia()[id];
+        (
+            m.body_mass()[id],
+            i[0] + i[1] + i[2],
+            m.body_subtreemass()[0],
+        )
+    };
+    let ((m1, i1, total1), (m0, i0, total0)) = (trunk(&sim), trunk(&nominal));
+    assert!((m1 - 1.2 * m0).abs() < 1e-9, "trunk mass {m1} vs {m0}");
+    assert!((i1 - 1.3 * i0).abs() < 1e-9, "trunk inertia {i1} vs {i0}");
+    assert!(
+        (total1 - total0 - 0.2 * m0).abs() < 1e-9,
+        "only the trunk changed"
     );
     // Half the commanded torque, and the limit halves with it.
     let limit = robot.leg.torque_limit_nm;

@@ -111,6 +111,14 @@ impl SweepEstimator {
     pub fn is_ground_truth(&self) -> bool {
         *self == SweepEstimator::GroundTruth
     }
+
+    /// As written in sweep files.
+    pub fn name(&self) -> &'static str {
+        match self {
+            SweepEstimator::GroundTruth => "ground-truth",
+            SweepEstimator::Kf => "kf",
+        }
+    }
 }
 
 /// Eq. (6)'s factor on V·ΔT per gait (`PlannerConfig::progress_factor`); default 0.5 (the
@@ -238,8 +246,9 @@ impl Grid {
         }
         if self.estimator != other.estimator {
             out.push(format!(
-                "estimator: {:?} vs {:?}",
-                self.estimator, other.estimator
+                "estimator: {} vs {}",
+                self.estimator.name(),
+                other.estimator.name()
             ));
         }
         if self.progress_factor != other.progress_factor {

@@ -288,7 +288,7 @@ pub fn write_tables(
              # {}: per speed the grid point with the lowest score cot - {} * manipulability among\n\
              # points that stood in every seed, tracked the command within {} m/s (velocity RMSE)\n\
              # and whose mean speed is off the command by at most {} x the command.\n\
-             # Use: eemp walk --gait {} --params-table {}\n{}",
+             # Use: eemp walk --gait {} --params-table {}\n{}{}",
             g.gait,
             sweep_dir.display(),
             sel.manipulability_weight,
@@ -296,6 +296,11 @@ pub fn write_tables(
             sel.max_speed_error_ratio,
             g.gait,
             path.display(),
+            if grid.estimator.is_ground_truth() {
+                ""
+            } else {
+                "# Selected from runs on the Kalman filter (sweep estimator = \"kf\").\n"
+            },
             table.to_toml()
         );
         crate::store::write_atomic(&path, text.as_bytes())?;
