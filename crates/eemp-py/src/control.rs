@@ -329,14 +329,7 @@ pub fn walk_json(
     spec.seed = seed;
     spec.state_source = match estimator {
         "ground-truth" => StateSource::GroundTruth,
-        "kf" => StateSource::Kf {
-            kf: eemp_core::estimator::KfConfig {
-                foot_height_m: robot.leg.foot_radius_m,
-                ..Default::default()
-            },
-            sensors: eemp_sim::sensors::SensorNoise::default(),
-            seed,
-        },
+        "kf" => StateSource::kf(&robot, eemp_sim::sensors::SensorNoise::default(), seed),
         other => {
             return Err(value_error(format!(
                 "unknown estimator '{other}': allowed ground-truth, kf"

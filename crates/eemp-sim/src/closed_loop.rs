@@ -86,6 +86,19 @@ pub enum StateSource {
 }
 
 impl StateSource {
+    /// The Kalman filter for `robot` (its foot radius as the foot height) on sensors with
+    /// `sensors` noise, seeded `seed`: what `--estimator kf` selects.
+    pub fn kf(robot: &eemp_core::robot::RobotConfig, sensors: SensorNoise, seed: u64) -> Self {
+        StateSource::Kf {
+            kf: KfConfig {
+                foot_height_m: robot.leg.foot_radius_m,
+                ..Default::default()
+            },
+            sensors,
+            seed,
+        }
+    }
+
     pub fn name(&self) -> &'static str {
         match self {
             StateSource::GroundTruth => "ground-truth",

@@ -221,14 +221,11 @@ fn eemp_analytical_walks_0_to_1_to_0_m_per_s_on_the_estimator_with_gait_changes(
     s.profile =
         eemp_core::config_error::load_toml(&root.join("profiles/up-and-down.toml")).unwrap();
     s.seed = 2;
-    s.state_source = eemp_sim::closed_loop::StateSource::Kf {
-        kf: eemp_core::estimator::KfConfig {
-            foot_height_m: robot.leg.foot_radius_m,
-            ..Default::default()
-        },
-        sensors: eemp_sim::sensors::SensorNoise::default(),
-        seed: 2,
-    };
+    s.state_source = eemp_sim::closed_loop::StateSource::kf(
+        &robot,
+        eemp_sim::sensors::SensorNoise::default(),
+        2,
+    );
     // Legs lifting together at each swing start: 1 (single-leg swings) or 2 (pairs).
     let (mut singles, mut pairs, mut prev) = (0usize, 0usize, [true; 4]);
     let run = run_walk(&robot, &s, |r| {

@@ -5,7 +5,6 @@ use crate::config::{Grid, ProgressFactors, SweepConfig, SweepEstimator};
 use crate::error::StudyError;
 use crate::grid::{RunSpec, Shard};
 use crate::store::{append_sessions, ResultRow, ResultStore, RunOutcome, SessionRow};
-use eemp_core::estimator::KfConfig;
 use eemp_core::planner::{PlannerConfig, VelocityCommand};
 use eemp_core::robot::RobotConfig;
 use eemp_sim::closed_loop::StateSource;
@@ -46,14 +45,7 @@ pub fn walk_spec(
     );
     walk.seed = spec.seed;
     if estimator == SweepEstimator::Kf {
-        walk.state_source = StateSource::Kf {
-            kf: KfConfig {
-                foot_height_m: robot.leg.foot_radius_m,
-                ..Default::default()
-            },
-            sensors: SensorNoise::default(),
-            seed: spec.seed,
-        };
+        walk.state_source = StateSource::kf(robot, SensorNoise::default(), spec.seed);
     }
     walk
 }
