@@ -12,8 +12,6 @@ use eemp_rl::tasks::model_free::{joint_targets, training_model, ModelFreeEnv};
 use eemp_rl::train::{train, TrainOptions};
 use eemp_sim::backend::SimSnapshot;
 use eemp_sim::Simulation;
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
 use std::time::Instant;
 
 pub struct RlBenchOptions {
@@ -50,11 +48,7 @@ fn env_rate(
         .map(|_| ModelFreeEnv::new(robot, model.clone(), config.model_free.clone()))
         .collect::<Result<Vec<_>, _>>()?;
     let mut v = VecEnv::new(envs, 7, threads)?;
-    let mut rng = ChaCha8Rng::seed_from_u64(3);
-    let n = v.len() * v.act_dim();
-    let actions: Vec<Vec<f32>> = (0..o.steps)
-        .map(|_| (0..n).map(|_| rng.random_range(-1.0..1.0)).collect())
-        .collect();
+    let actions = eemp_rl::env::random_actions(v.len() * v.act_dim(), o.steps, 3);
     let Some(record) = record else {
         return Ok(eemp_rl::env::stepping_rate(&mut v, &actions));
     };

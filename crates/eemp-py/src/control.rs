@@ -1,7 +1,7 @@
 //! EEMP (planner + MPC + swing law) callable on a state and a command, a simulated A1 to drive
 //! it with, and whole walks with their metrics.
 
-use crate::envs::value_error;
+use crate::envs::{lock, value_error};
 use eemp_core::body_state::{BodyState, LegJointState, RobotState};
 use eemp_core::config_error::load_toml;
 use eemp_core::control::{ControlInput, Controller};
@@ -18,7 +18,6 @@ use eemp_sim::walk::{eemp_controller, reset_to_start, run_walk, StartPose, WalkS
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 use numpy::{AllowTypeChange, PyArray1, PyArrayLike1};
 use pyo3::prelude::*;
-use pyo3::sync::MutexExt;
 use std::path::PathBuf;
 use std::sync::Mutex;
 
@@ -195,10 +194,7 @@ impl PyEempController {
                 "command {command:?} must be finite (v_x, v_y m/s, yaw rate rad/s)"
             )));
         }
-        let mut g = self
-            .inner
-            .lock_py_attached(py)
-            .unwrap_or_else(|p| p.into_inner());
+        let mut g = lock(&self.inner, py);
         let s = &mut *g;
         s.model.set_state(&state);
         s.model.prepare();
@@ -218,10 +214,7 @@ impl PyEempController {
 
     /// The legs in stance in the last step's plan (FR, FL, RR, RL).
     fn stance(&self, py: Python<'_>) -> Option<[bool; 4]> {
-        let g = self
-            .inner
-            .lock_py_attached(py)
-            .unwrap_or_else(|p| p.into_inner());
+        let g = lock(&self.inner, py);
         g.controller.plan().map(|p| p.stance.0)
     }
 }
@@ -234,9 +227,7 @@ pub struct PyA1Sim {
 
 impl PyA1Sim {
     fn lock(&self, py: Python<'_>) -> std::sync::MutexGuard<'_, Simulation> {
-        self.sim
-            .lock_py_attached(py)
-            .unwrap_or_else(|p| p.into_inner())
+        lock(&self.sim, py)
     }
 }
 

@@ -4,7 +4,7 @@
 
 use eemp_core::robot::RobotConfig;
 use eemp_rl::config::{TaskKind, TrainConfig};
-use eemp_rl::env::{env_seed, stepping_rate, Env, VecEnv};
+use eemp_rl::env::{env_seed, random_actions, stepping_rate};
 use eemp_rl::train::{make_envs_with, parse_motion, AnyVecEnv};
 use numpy::{
     PyArray1, PyArray2, PyArray3, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3,
@@ -13,10 +13,8 @@ use numpy::{
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::sync::MutexExt;
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
 use std::path::{Path, PathBuf};
-use std::sync::Mutex;
+use std::sync::{Mutex, MutexGuard};
 
 /// The reference motion the shipped imitation policy was trained on; the default of the
 /// imitation task, so it runs from any working directory.
@@ -141,15 +139,17 @@ pub struct PyVecEnv {
     episode_s: f64,
 }
 
+/// Locks what a Python object holds, waiting with the GIL released (another Python thread may
+/// hold the lock with the GIL released too: waiting with it held would deadlock both). A panic
+/// inside a call (turned into a Python exception) leaves the data as it was, so a poisoned lock
+/// is taken as it is: the next reset starts clean episodes.
+pub(crate) fn lock<'a, T>(m: &'a Mutex<T>, py: Python<'_>) -> MutexGuard<'a, T> {
+    m.lock_py_attached(py).unwrap_or_else(|p| p.into_inner())
+}
+
 impl PyVecEnv {
-    /// Waits for the environments with the GIL released (another Python thread may be
-    /// stepping them with the GIL released too: waiting with it held would deadlock both).
-    fn lock(&self, py: Python<'_>) -> std::sync::MutexGuard<'_, AnyVecEnv> {
-        // A panic inside a step (turned into a Python exception) leaves the data as it was;
-        // the next reset starts clean episodes.
-        self.inner
-            .lock_py_attached(py)
-            .unwrap_or_else(|p| p.into_inner())
+    fn lock(&self, py: Python<'_>) -> MutexGuard<'_, AnyVecEnv> {
+        lock(&self.inner, py)
     }
 }
 
@@ -406,14 +406,10 @@ pub fn rust_stepping_rate(
     seed: u64,
 ) -> PyResult<f64> {
     let (mut any, _) = build(task, num_envs, seed, threads, None, None)?;
-    py.detach(|| with_env!(&mut any, v => Ok(rate(v, steps))))
-}
-
-fn rate<E: Env>(v: &mut VecEnv<E>, steps: usize) -> f64 {
-    let mut rng = ChaCha8Rng::seed_from_u64(3);
-    let n = v.len() * v.act_dim();
-    let actions: Vec<Vec<f32>> = (0..steps)
-        .map(|_| (0..n).map(|_| rng.random_range(-1.0..1.0)).collect())
-        .collect();
-    stepping_rate(v, &actions)
+    py.detach(|| {
+        with_env!(&mut any, v => {
+            let actions = random_actions(v.len() * v.act_dim(), steps, 3);
+            Ok(stepping_rate(v, &actions))
+        })
+    })
 }

@@ -153,7 +153,7 @@ v.reset(seed=0)
 def work():
     for _ in range(20):
         v.step(np.zeros((16, 12), np.float32))
-        v.observations() if hasattr(v, "observations") else None
+        v._v.observations()  # a second method taking the same lock
 ts = [threading.Thread(target=work) for _ in range(3)]
 [t.start() for t in ts]
 [t.join() for t in ts]

@@ -5,7 +5,7 @@
 //! its MuJoCo data; nothing is shared between them while they step, so the rollout is the same
 //! whatever the number of threads or the order the pool runs them in.
 
-use rand::SeedableRng;
+use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
@@ -321,6 +321,15 @@ fn step_slot<E: Env>(
         sanitize(obs);
     }
     info
+}
+
+/// `steps` batches of `len` actions, each uniform in [-1, 1] from a ChaCha8 RNG seeded `seed`:
+/// the stepping measurements' inputs (`eemp bench rl`, the Python bindings' benchmark).
+pub fn random_actions(len: usize, steps: usize, seed: u64) -> Vec<Vec<f32>> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    (0..steps)
+        .map(|_| (0..len).map(|_| rng.random_range(-1.0..1.0)).collect())
+        .collect()
 }
 
 /// Env steps per second of `v` stepped with each batch of `actions` in turn (row-major, env ×

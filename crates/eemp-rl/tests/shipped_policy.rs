@@ -6,11 +6,23 @@ use eemp_core::robot::RobotConfig;
 use eemp_rl::config::TaskKind;
 use eemp_rl::controller::PolicyController;
 use eemp_rl::policy::Policy;
-use eemp_sim::walk::{run_walk_with, StartPose, WalkSpec};
+use eemp_sim::walk::{run_walk_with, StartPose, WalkRun, WalkSpec};
 use std::path::PathBuf;
 
-fn shipped() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../policies/a1_model_free.safetensors")
+/// A file of the repository (policies, profiles) from this crate's tests.
+fn repo_file(path: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../..")
+        .join(path)
+}
+
+/// The walk stood, tracked within `max_rmse_mps` and went further than `min_distance_m`.
+fn assert_walked(run: &WalkRun, max_rmse_mps: f64, min_distance_m: f64) {
+    assert!(!run.stats.fell, "fell at {:?}", run.stats.fell_at_s);
+    let rmse = run.metrics.vel_rmse_mps.unwrap();
+    assert!(rmse <= max_rmse_mps, "velocity RMSE {rmse} m/s");
+    let d = run.metrics.distance_m;
+    assert!(d > min_distance_m, "walked {d} m");
 }
 
 fn walk_spec(vx_mps: f64, duration_s: f64) -> WalkSpec {
@@ -28,19 +40,16 @@ fn walk_spec(vx_mps: f64, duration_s: f64) -> WalkSpec {
 #[test]
 fn the_shipped_model_free_policy_walks_5_s_at_0_5_m_per_s() {
     let robot = RobotConfig::a1();
-    let policy = Policy::load(&shipped(), Some(TaskKind::ModelFree)).unwrap();
+    let policy = Policy::load(
+        &repo_file("policies/a1_model_free.safetensors"),
+        Some(TaskKind::ModelFree),
+    )
+    .unwrap();
     assert_eq!(policy.config.model_free.train_timestep_s, 0.004);
     let mut c = PolicyController::new(policy, &robot, robot.simulation.timestep_s).unwrap();
     let start = StartPose::from_joints(&robot, c.default_pose());
     let run = run_walk_with(&robot, &walk_spec(0.5, 5.0), &start, &mut c, |_| {}).unwrap();
-    assert!(!run.stats.fell, "fell at {:?}", run.stats.fell_at_s);
-    let rmse = run.metrics.vel_rmse_mps.unwrap();
-    assert!(rmse <= 0.1, "velocity RMSE {rmse} m/s");
-    assert!(
-        run.metrics.distance_m > 1.2,
-        "walked {} m",
-        run.metrics.distance_m
-    );
+    assert_walked(&run, 0.1, 1.2);
     // It steps (feet unload and load again), it does not slide: 0.5 m/s over 5 s with feet
     // in the air. (Which legs step is the policy's own choice: see the README.)
     let touchdowns: usize = run.steps.0.iter().sum();
@@ -51,8 +60,7 @@ fn the_shipped_model_free_policy_walks_5_s_at_0_5_m_per_s() {
 #[test]
 fn the_shipped_imitation_policy_walks_5_s_at_0_5_m_per_s_in_the_dogs_trot() {
     let robot = RobotConfig::a1();
-    let path =
-        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../policies/a1_imitation.safetensors");
+    let path = repo_file("policies/a1_imitation.safetensors");
     let policy = Policy::load(&path, Some(TaskKind::Imitation)).unwrap();
     assert!(policy.motion.is_some());
     let mut c = PolicyController::new(policy, &robot, robot.simulation.timestep_s).unwrap();
@@ -69,14 +77,7 @@ fn the_shipped_imitation_policy_walks_5_s_at_0_5_m_per_s_in_the_dogs_trot() {
         }
     })
     .unwrap();
-    assert!(!run.stats.fell, "fell at {:?}", run.stats.fell_at_s);
-    let rmse = run.metrics.vel_rmse_mps.unwrap();
-    assert!(rmse <= 0.15, "velocity RMSE {rmse} m/s");
-    assert!(
-        run.metrics.distance_m > 1.2,
-        "walked {} m",
-        run.metrics.distance_m
-    );
+    assert_walked(&run, 0.15, 1.2);
     let touchdowns: usize = run.steps.0.iter().sum();
     assert!(touchdowns >= 15, "touchdowns {:?}", run.steps);
     // The reference is a trot: diagonal pairs move together more often than lateral ones.
@@ -94,8 +95,7 @@ fn shipped_eemp_rl() -> (
 ) {
     use eemp_rl::tasks::eemp_rl::EempRlController;
     let robot = RobotConfig::a1();
-    let path =
-        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../policies/a1_eemp_rl.safetensors");
+    let path = repo_file("policies/a1_eemp_rl.safetensors");
     let policy = Policy::load(&path, Some(TaskKind::EempRl)).unwrap();
     let cfg = policy.config.eemp_rl.clone();
     let start = EempRlController::<Policy>::start_pose(&robot, &cfg).unwrap();
@@ -107,21 +107,13 @@ fn shipped_eemp_rl() -> (
 fn the_shipped_eemp_rl_policy_walks_5_s_at_0_5_m_per_s() {
     let (robot, mut c, start) = shipped_eemp_rl();
     let run = run_walk_with(&robot, &walk_spec(0.5, 5.0), &start, &mut c, |_| {}).unwrap();
-    assert!(!run.stats.fell, "fell at {:?}", run.stats.fell_at_s);
-    let rmse = run.metrics.vel_rmse_mps.unwrap();
-    assert!(rmse <= 0.1, "velocity RMSE {rmse} m/s");
-    assert!(
-        run.metrics.distance_m > 1.2,
-        "walked {} m",
-        run.metrics.distance_m
-    );
+    assert_walked(&run, 0.1, 1.2);
 }
 
 #[test]
 fn the_shipped_eemp_rl_policy_walks_0_to_1_to_0_m_per_s_in_one_run() {
     let (robot, mut c, start) = shipped_eemp_rl();
-    let profile_file =
-        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../profiles/up-and-down.toml");
+    let profile_file = repo_file("profiles/up-and-down.toml");
     let mut spec = walk_spec(0.0, 20.0);
     spec.profile = eemp_core::config_error::load_toml(&profile_file).unwrap();
     spec.seed = 1;
@@ -130,9 +122,9 @@ fn the_shipped_eemp_rl_policy_walks_0_to_1_to_0_m_per_s_in_one_run() {
         top_speed = top_speed.max(r.state.body.v_heading().x);
     })
     .unwrap();
-    assert!(!run.stats.fell, "fell at {:?}", run.stats.fell_at_s);
-    let rmse = run.metrics.vel_rmse_mps.unwrap();
-    assert!(rmse <= 0.15, "velocity RMSE {rmse} m/s over the profile");
+    // The profile commands 9.75 m from 0.5 s on, about 9.4 m of it in the metrics window (from
+    // 2 s); a walk left behind by the steps covers much less.
+    assert_walked(&run, 0.15, 8.0);
     assert!(
         top_speed > 0.9,
         "reached {top_speed} m/s of the 1.0 commanded"
