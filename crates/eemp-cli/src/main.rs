@@ -52,6 +52,10 @@ enum Command {
         /// Robot description (default: the shipped A1, robots/a1.toml).
         #[arg(long)]
         robot: Option<std::path::PathBuf>,
+        /// Scenario file (scenarios/*.toml): print the world a walk in it simulates (terrain,
+        /// floor friction, payload, model errors) rather than the bare robot on a flat floor.
+        #[arg(long)]
+        scenario: Option<std::path::PathBuf>,
     },
 }
 
@@ -157,15 +161,17 @@ fn main() {
             );
             println!("{}", r.json_line());
         }),
-        Command::Model { robot } => (|| {
+        Command::Model { robot, scenario } => (|| {
             let robot = match robot {
                 Some(p) => eemp_core::robot::RobotConfig::load(&p).map_err(|e| e.to_string())?,
                 None => eemp_core::robot::RobotConfig::a1(),
             };
-            print!(
-                "{}",
-                eemp_sim::mjcf::robot_mjcf(&robot, &Default::default())
-            );
+            let scenario = match scenario {
+                Some(p) => eemp_sim::scenario::Scenario::load(&p).map_err(|e| e.to_string())?,
+                None => Default::default(),
+            };
+            let (robot, scene) = scenario.simulated_world(&robot);
+            print!("{}", eemp_sim::mjcf::robot_mjcf(&robot, &scene));
             Ok(())
         })(),
     };

@@ -112,6 +112,20 @@ impl Scenario {
         out
     }
 
+    /// The robot and scene a walk in this scenario simulates.
+    pub fn simulated_world(
+        &self,
+        robot: &eemp_core::robot::RobotConfig,
+    ) -> (eemp_core::robot::RobotConfig, crate::mjcf::SceneExtras) {
+        crate::walk::simulated_world(
+            robot,
+            &self.terrain,
+            self.floor_friction,
+            &self.model_error,
+            self.payload_kg,
+        )
+    }
+
     /// Applies the scenario to a walk (terrain, friction, pushes, payload).
     pub fn apply(&self, spec: &mut WalkSpec) {
         spec.terrain = self.terrain.clone();

@@ -12,6 +12,15 @@ use std::fmt::Write;
 /// Contact softness shared with the floor (Menagerie's foot solimp).
 const SOLIMP: &str = "0.015 1 0.031";
 
+/// Contact softness of the rough height field: MuJoCo's default, stiff. With the floor's soft
+/// [`SOLIMP`] (impedance 0.015 at first touch, full only after 3.1 cm) a loaded 2 cm foot sinks
+/// more than a centimetre into the field, and MuJoCo's per-prism collision then reports the
+/// walls of the neighbouring cells (horizontal normals, 2 cm deep) instead of the surface: they
+/// squeeze the foot and friction holds it, so a swing leg pulling with 20 N·m at hip and knee
+/// stayed where it was for its whole swing (trot, seed 1, at 10.43 s) and the robot fell over it.
+/// Every EEMP gait fell on ±2 cm ground that way; with this value all three walk it.
+const HFIELD_SOLIMP: &str = "0.9 0.95 0.001";
+
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Rough {
@@ -253,8 +262,13 @@ impl Terrain {
     pub fn scene(&self, floor_friction: f64) -> SceneExtras {
         let mut x = SceneExtras::default();
         let geom = |name: &str, body: &str, mu: f64, priority: u8| {
+            let solimp = if name == "terrain_rough" {
+                HFIELD_SOLIMP
+            } else {
+                SOLIMP
+            };
             format!(
-                r#"    <geom name="{name}" {body} contype="1" conaffinity="1" priority="{priority}" condim="3" friction="{mu} 0.02 0.01" solimp="{SOLIMP}" rgba="0.7 0.7 0.75 1"/>
+                r#"    <geom name="{name}" {body} contype="1" conaffinity="1" priority="{priority}" condim="3" friction="{mu} 0.02 0.01" solimp="{solimp}" rgba="0.7 0.7 0.75 1"/>
 "#
             )
         };

@@ -196,7 +196,37 @@ impl ModelError {
     }
 }
 
+/// The robot and scene the simulator runs: floor friction, terrain, model errors and payload
+/// applied to `robot`. The simulated robot carries the payload and has the model errors; the
+/// controllers, built from `robot`, do not know.
+pub fn simulated_world(
+    robot: &RobotConfig,
+    terrain: &Terrain,
+    floor_friction: Option<f64>,
+    model_error: &ModelError,
+    payload_kg: f64,
+) -> (RobotConfig, SceneExtras) {
+    let mut robot = robot.clone();
+    if let Some(mu) = floor_friction {
+        robot.simulation.floor_friction = mu;
+    }
+    let mut scene = terrain.scene(robot.simulation.floor_friction);
+    model_error.apply(&mut robot, &mut scene);
+    robot.trunk.mass_kg += payload_kg;
+    (robot, scene)
+}
+
 impl WalkSpec {
+    /// The robot and scene the simulator runs for this walk (see [`simulated_world`]).
+    pub fn simulated_world(&self, robot: &RobotConfig) -> (RobotConfig, SceneExtras) {
+        simulated_world(
+            robot,
+            &self.terrain,
+            self.floor_friction,
+            &self.model_error,
+            self.payload_kg,
+        )
+    }
     /// A constant-speed run of `duration_s` starting 0.5 s after t = 0, metrics from 2 s.
     pub fn constant(
         planner: PlannerConfig,
@@ -427,15 +457,7 @@ pub fn run_walk_commanded(
     mut observer: impl FnMut(&StepRecord),
 ) -> Result<WalkRun, ScenarioError> {
     spec.validate()?;
-    let mut robot = robot.clone();
-    if let Some(mu) = spec.floor_friction {
-        robot.simulation.floor_friction = mu;
-    }
-    // The simulated robot carries the payload and has the model errors; `robot` (what the
-    // controllers were built from) does not know.
-    let mut scene = spec.terrain.scene(robot.simulation.floor_friction);
-    spec.model_error.apply(&mut robot, &mut scene);
-    robot.trunk.mass_kg += spec.payload_kg;
+    let (robot, scene) = spec.simulated_world(robot);
     let mut sim = Simulation::new(&robot, &scene)?;
     reset_to_start(&mut sim, start, spec.seed);
     let kin = LegKinematics::new(&robot);

@@ -1,5 +1,6 @@
-//! Each terrain builds, says its own height right (against MuJoCo's ray casts), and a sphere
-//! dropped on it comes to rest at that height.
+//! Each terrain builds, says its own height right (against MuJoCo's ray casts), a sphere
+//! dropped on it comes to rest at that height, and a foot resting on the rough field comes free
+//! when it is lifted.
 
 use eemp_core::leg::LegMap;
 use eemp_core::robot::RobotConfig;
@@ -112,8 +113,9 @@ fn rest(t: &Terrain, at: [f64; 2]) -> [f64; 3] {
 
 #[test]
 fn a_sphere_rests_at_the_height_the_terrain_says() {
-    // The contacts are soft (the sphere sinks ~14 mm into any ground): the flat floor gives the
-    // resting height of the same sphere on level ground.
+    // The floor's contacts are soft (the sphere sinks ~14 mm into it): the flat floor gives the
+    // resting height of the same sphere on level ground. The rough field and the patch are
+    // stiff (see `eemp_sim::terrain`): the sphere hardly sinks into them.
     let flat = rest(&Terrain::default(), [1.3, 2.2])[2];
     assert!((flat - R).abs() < 0.02);
     for (name, t) in terrains() {
@@ -125,8 +127,11 @@ fn a_sphere_rests_at_the_height_the_terrain_says() {
             _ => [1.3, 2.2],
         };
         let p = rest(&t, at);
-        // The patch is a stiff mat: the sphere hardly sinks into it.
-        let sink = if name == "patch" { 0.0 } else { flat - R };
+        let sink = if name == "patch" || name == "rough" {
+            0.0
+        } else {
+            flat - R
+        };
         let expected = t.height_at(p[0], p[1]) + R + sink;
         assert!(
             (p[2] - expected).abs() < 0.003 || (name == "patch" && (p[2] - expected).abs() < 0.002),
@@ -134,6 +139,64 @@ fn a_sphere_rests_at_the_height_the_terrain_says() {
             p[2]
         );
     }
+}
+
+#[test]
+fn a_foot_resting_on_the_rough_field_comes_free_when_lifted() {
+    // An A1 foot (a 2 cm sphere) dropped from 10 cm (landing at 1.4 m/s, as a stance leg that
+    // reaches down for ground lower than planned does) at 60 points of a ±2 cm field, many of
+    // them on the corners of its 5 cm cells, then pulled up with its weight + 20 N for 0.2 s.
+    // With the floor's soft contact 20 of these 60 stayed caught between the walls of
+    // neighbouring cells (what held a swing foot on the ground and toppled every EEMP gait).
+    let t = Terrain {
+        rough: Some(Rough {
+            amplitude_m: 0.02,
+            wavelength_m: 0.5,
+            seed: 1,
+            size_m: 16.0,
+        }),
+        ..Default::default()
+    };
+    let robot = RobotConfig::a1();
+    let (radius, mass) = (robot.leg.foot_radius_m, 1.0);
+    let points: Vec<(f64, f64)> = (0..20)
+        .flat_map(|i| [-0.3, -0.319, -0.2].map(|y| (2.0 + 0.05 * i as f64, y)))
+        .collect();
+    // One model, one foot per point; the feet touch the ground but not each other (contype 2).
+    let mut extras = t.scene(robot.simulation.floor_friction);
+    for (k, (x, y)) in points.iter().enumerate() {
+        extras.world_geoms_xml += &format!(
+            r#"    <body name="foot{k}" pos="{x} {y} {}"><freejoint/><geom type="sphere" size="{radius}" mass="{mass}" contype="2" conaffinity="1" condim="3" friction="0.8 0.02 0.01"/></body>
+"#,
+            t.height_at(*x, *y) + radius + 0.1
+        );
+    }
+    let mut sim = Simulation::new(&robot, &extras).unwrap();
+    let bodies: Vec<usize> = (0..points.len())
+        .map(|k| {
+            sim.model()
+                .name_to_id(MjtObjBase::mjOBJ_BODY, &format!("foot{k}"))
+                .unwrap()
+        })
+        .collect();
+    for _ in 0..600 {
+        sim.step_bare(&LegMap::splat(Vector3::zeros()));
+    }
+    let z0: Vec<f64> = bodies.iter().map(|b| sim.data().xpos()[*b][2]).collect();
+    for _ in 0..200 {
+        for b in &bodies {
+            sim.data_mut().xfrc_applied_mut()[*b] = [0.0, 0.0, mass * 9.81 + 20.0, 0.0, 0.0, 0.0];
+        }
+        sim.step_bare(&LegMap::splat(Vector3::zeros()));
+    }
+    let caught: Vec<(f64, f64)> = bodies
+        .iter()
+        .zip(&z0)
+        .zip(&points)
+        .filter(|((b, z), _)| sim.data().xpos()[**b][2] - **z < 0.05)
+        .map(|(_, p)| *p)
+        .collect();
+    assert!(caught.is_empty(), "feet caught at {caught:?}");
 }
 
 /// How far a 2 kg box launched at 1 m/s along x from `x0` slides before it stops.
