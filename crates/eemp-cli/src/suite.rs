@@ -15,7 +15,7 @@ use eemp_rl::controller::PolicyController;
 use eemp_rl::policy::Policy;
 use eemp_rl::tasks::eemp_rl::EempRlController;
 use eemp_sim::scenario::Scenario;
-use eemp_sim::walk::{eemp_controller, run_walk_with, StartPose, WalkSpec};
+use eemp_sim::walk::{eemp_controller, run_walk_with, StartPose, VelocityProfile, WalkSpec};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::io::Write;
@@ -38,6 +38,17 @@ pub struct MethodConfig {
     /// A learned method's policy file.
     #[serde(default)]
     pub policy: Option<PathBuf>,
+    /// What this method's controller sees, in place of the suite's `estimator` (e.g. the same
+    /// method on ground truth beside it on the filter).
+    #[serde(default)]
+    pub estimator: Option<String>,
+}
+
+impl MethodConfig {
+    /// The method's estimator: its own or the suite's.
+    pub fn estimator<'a>(&'a self, suite: &'a SuiteConfig) -> &'a str {
+        self.estimator.as_deref().unwrap_or(&suite.estimator)
+    }
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -47,8 +58,39 @@ pub struct ScenarioConfig {
     /// A scenario file (`scenarios/*.toml`); none: the flat floor.
     #[serde(default)]
     pub file: Option<PathBuf>,
-    /// Commanded forward speeds, m/s.
+    /// Commanded forward speeds, m/s (leave out with `profile`).
+    #[serde(default)]
     pub speeds_mps: Vec<f64>,
+    /// A velocity profile (`profiles/*.toml`) in place of constant speeds: one run per method
+    /// and seed, listed at the profile's top forward speed.
+    #[serde(default)]
+    pub profile: Option<PathBuf>,
+}
+
+impl ScenarioConfig {
+    fn load_profile(&self) -> Result<Option<VelocityProfile>, String> {
+        self.profile
+            .as_ref()
+            .map(|p| {
+                let v: VelocityProfile =
+                    eemp_core::config_error::load_toml(p).map_err(|e| e.to_string())?;
+                v.validate().map_err(|e| format!("{}: {e}", p.display()))?;
+                Ok(v)
+            })
+            .transpose()
+    }
+
+    /// The speeds its runs are listed at: `speeds_mps`, or a profile's top forward speed.
+    pub fn speeds(&self) -> Vec<f64> {
+        match self.load_profile() {
+            Ok(Some(p)) => vec![p
+                .segments
+                .iter()
+                .map(|s| s.vx_mps.abs())
+                .fold(0.0, f64::max)],
+            _ => self.speeds_mps.clone(),
+        }
+    }
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -130,6 +172,10 @@ impl SuiteConfig {
             );
         }
         crate::state_source_arg::state_source(&self.estimator, false, 0, &RobotConfig::a1())?;
+        for m in &self.methods {
+            crate::state_source_arg::state_source(m.estimator(self), false, 0, &RobotConfig::a1())
+                .map_err(|e| format!("method '{}': {e}", m.name))?;
+        }
         // Run ids must be unique (resume finds runs by id).
         let mut seeds = self.seeds.clone();
         seeds.sort_unstable();
@@ -185,8 +231,19 @@ impl SuiteConfig {
             if let Some(f) = &s.file {
                 Scenario::load(f).map_err(|e| format!("scenario '{}': {e}", s.name))?;
             }
-            if s.speeds_mps.is_empty() {
-                return Err(format!("scenario '{}': speeds_mps is empty", s.name));
+            match (
+                s.load_profile()
+                    .map_err(|e| format!("scenario '{}': {e}", s.name))?,
+                s.speeds_mps.is_empty(),
+            ) {
+                (Some(_), false) => {
+                    return Err(format!(
+                        "scenario '{}': give either speeds_mps or a profile, not both",
+                        s.name
+                    ))
+                }
+                (None, true) => return Err(format!("scenario '{}': speeds_mps is empty", s.name)),
+                _ => {}
             }
             let mut mm: Vec<i64> = s
                 .speeds_mps
@@ -215,7 +272,7 @@ impl SuiteConfig {
     pub fn runs(&self) -> Vec<SuiteRun> {
         let mut runs = Vec::new();
         for (si, s) in self.scenarios.iter().enumerate() {
-            for &v in &s.speeds_mps {
+            for v in s.speeds() {
                 for mi in 0..self.methods.len() {
                     for &seed in &self.seeds {
                         runs.push(SuiteRun {
@@ -262,7 +319,10 @@ pub fn simulate(
     );
     spec.seed = run.seed;
     spec.state_source =
-        crate::state_source_arg::state_source(&cfg.estimator, false, run.seed, robot)?;
+        crate::state_source_arg::state_source(m.estimator(cfg), false, run.seed, robot)?;
+    if let Some(p) = sc.load_profile()? {
+        spec.profile = p;
+    }
     if let Some(f) = &sc.file {
         let s = Scenario::load(f).map_err(|e| e.to_string())?;
         s.apply(&mut spec);

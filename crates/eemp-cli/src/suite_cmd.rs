@@ -2,7 +2,7 @@
 //! (methods across scenarios): suites of walks (`crate::suite`) and their reports.
 
 use crate::plots::{grouped_bars, line_panels, Band, BarPanel, Panel, Series};
-use crate::suite::{run_suite, SuiteConfig, SuiteRow};
+use crate::suite::{run_suite, MethodConfig, SuiteConfig, SuiteRow};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -245,7 +245,7 @@ pub fn compare(args: &SuiteArgs) -> Result<(), String> {
     let (cfg, rows) = run(args, "suites/compare.toml")?;
     let cells = aggregate(&rows);
     let scen = cfg.scenarios[0].name.clone();
-    let speeds: Vec<f64> = cfg.scenarios[0].speeds_mps.clone();
+    let speeds: Vec<f64> = cfg.scenarios[0].speeds();
     let key = |m: &str, v: f64| (m.to_string(), scen.clone(), (v * 1000.0).round() as i64);
     // Fig. 7: three panels against speed, one line per method, min–max over seeds shaded.
     let metric = |name: &str, unit: &str, f: fn(&Cell) -> &Stat| {
@@ -480,7 +480,7 @@ pub fn robustness(args: &SuiteArgs) -> Result<(), String> {
     // One category per scenario and speed.
     let mut cats: Vec<(String, f64)> = Vec::new();
     for s in &cfg.scenarios {
-        for &v in &s.speeds_mps {
+        for v in s.speeds() {
             cats.push((s.name.clone(), v));
         }
     }
@@ -491,7 +491,7 @@ pub fn robustness(args: &SuiteArgs) -> Result<(), String> {
                 .scenarios
                 .iter()
                 .find(|x| &x.name == s)
-                .map(|x| x.speeds_mps.len())
+                .map(|x| x.speeds().len())
                 .unwrap_or(1)
                 > 1
             {
@@ -594,6 +594,56 @@ pub fn robustness(args: &SuiteArgs) -> Result<(), String> {
                 );
             }
         }
+    }
+    // The same method on two estimators: how much the filter costs in tracking.
+    let pairs: Vec<(&MethodConfig, &MethodConfig)> = cfg
+        .methods
+        .iter()
+        .flat_map(|a| cfg.methods.iter().map(move |b| (a, b)))
+        .filter(|(a, b)| {
+            a.estimator(&cfg) == "kf"
+                && b.estimator(&cfg) == "ground-truth"
+                && (&a.kind, &a.gait, &a.table, &a.policy)
+                    == (&b.kind, &b.gait, &b.table, &b.policy)
+        })
+        .collect();
+    if !pairs.is_empty() {
+        let _ = writeln!(
+            md,
+            "\n## The filter against ground truth\n\nVelocity RMSE on the Kalman filter divided \
+             by the same method's on ground truth (means over the runs without a fall; – where \
+             either has none).\n"
+        );
+        let _ = writeln!(
+            md,
+            "| scenario | speed m/s | {} |",
+            pairs
+                .iter()
+                .map(|(a, _)| a.name.as_str())
+                .collect::<Vec<_>>()
+                .join(" | ")
+        );
+        let _ = writeln!(md, "|---|---|{}", "---|".repeat(pairs.len()));
+        let mut worst: f64 = 0.0;
+        for c in &cats {
+            let ratios: Vec<String> = pairs
+                .iter()
+                .map(|(a, b)| {
+                    match (
+                        cell(&a.name, c).map(|x| x.vel_rmse.mean()),
+                        cell(&b.name, c).map(|x| x.vel_rmse.mean()),
+                    ) {
+                        (Some(k), Some(g)) if k.is_finite() && g.is_finite() && g > 0.0 => {
+                            worst = worst.max(k / g);
+                            format!("{:.2}", k / g)
+                        }
+                        _ => "–".into(),
+                    }
+                })
+                .collect();
+            let _ = writeln!(md, "| {} | {:.2} | {} |", c.0, c.1, ratios.join(" | "));
+        }
+        let _ = writeln!(md, "\nLargest ratio: {worst:.2}.");
     }
     write_report(&args.out, &md, "eemp robustness")?;
     println!(

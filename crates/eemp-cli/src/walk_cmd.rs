@@ -419,6 +419,7 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
         "realtime_factor": st.realtime_factor(),
         "mpc_solves": st.mpc_solves,
         "mpc_failures": st.mpc_failures,
+        "mpc_friction_min": st.mpc_friction_min,
         "mpc_solve_us_median": st.mpc_solve_median_us(),
         "time_share": {
             "physics": st.stages.physics_s / total,

@@ -21,6 +21,7 @@ fn config() -> SuiteConfig {
                 gait: Some("trot".into()),
                 table: Some(repo("tables/a1_trot.toml")),
                 policy: None,
+                estimator: None,
             },
             MethodConfig {
                 name: "model-free RL".into(),
@@ -28,6 +29,7 @@ fn config() -> SuiteConfig {
                 gait: None,
                 table: None,
                 policy: Some(repo("policies/a1_model_free.safetensors")),
+                estimator: None,
             },
         ],
         scenarios: vec![
@@ -35,11 +37,13 @@ fn config() -> SuiteConfig {
                 name: "flat".into(),
                 file: None,
                 speeds_mps: vec![0.3],
+                profile: None,
             },
             ScenarioConfig {
                 name: "payload".into(),
                 file: Some(repo("scenarios/payload-2kg.toml")),
                 speeds_mps: vec![0.3],
+                profile: None,
             },
         ],
     }
@@ -116,4 +120,64 @@ fn bad_suite_configs_are_refused_naming_the_value() {
     let mut c = config();
     c.estimator = "oracle".into();
     assert!(c.validate().unwrap_err().contains("oracle"));
+    let mut c = config();
+    c.methods[1].estimator = Some("oracle".into());
+    let e = c.validate().unwrap_err();
+    assert!(e.contains("model-free RL") && e.contains("oracle"), "{e}");
+    let mut c = config();
+    c.scenarios[0].profile = Some(repo("profiles/up-and-down.toml"));
+    assert!(c.validate().unwrap_err().contains("not both"));
+    let mut c = config();
+    c.scenarios[0].speeds_mps.clear();
+    c.scenarios[0].profile = Some(repo("profiles/nope.toml"));
+    assert!(c.validate().unwrap_err().contains("nope.toml"));
+}
+
+#[test]
+fn a_method_can_run_on_its_own_estimator_and_a_scenario_on_a_profile() {
+    let mut c = config();
+    c.duration_s = 4.0;
+    c.seeds = vec![1];
+    let mut gt = c.methods[0].clone();
+    gt.name = "EEMP trot, ground truth".into();
+    gt.estimator = Some("ground-truth".into());
+    c.methods = vec![c.methods[0].clone(), gt];
+    c.scenarios = vec![ScenarioConfig {
+        name: "up and down".into(),
+        file: None,
+        speeds_mps: vec![],
+        profile: Some(repo("profiles/up-and-down.toml")),
+    }];
+    c.validate().unwrap();
+    // One run per method and seed, listed at the profile's top speed (1.0 m/s).
+    let runs = c.runs();
+    assert_eq!(runs.len(), 2);
+    assert!(runs.iter().all(|r| (r.speed_mps - 1.0).abs() < 1e-12));
+    let dir = tempfile::tempdir().unwrap();
+    let rows = run_suite(&c, dir.path(), 2, &|_, _, _| {}).unwrap();
+    let robot = eemp_core::robot::RobotConfig::a1();
+    for r in &rows {
+        let m = c.methods.iter().find(|m| m.name == r.method).unwrap();
+        // Each row is the walk `eemp walk` does on that estimator along the profile.
+        let mut spec = eemp_sim::walk::WalkSpec::constant(
+            eemp_core::planner::PlannerConfig::default(),
+            Default::default(),
+            Default::default(),
+            c.duration_s,
+        );
+        spec.seed = 1;
+        spec.profile =
+            eemp_core::config_error::load_toml(&repo("profiles/up-and-down.toml")).unwrap();
+        spec.state_source =
+            eemp_cli::state_source_arg::state_source(m.estimator(&c), false, 1, &robot).unwrap();
+        spec.params_table = Some(
+            eemp_core::planner::params_table::ParamsTable::load(&repo("tables/a1_trot.toml"))
+                .unwrap(),
+        );
+        let mut ctl = eemp_sim::walk::eemp_controller(&robot, &spec).unwrap();
+        let start = eemp_sim::walk::StartPose::eemp(&robot, &spec).unwrap();
+        let walk = eemp_sim::walk::run_walk_with(&robot, &spec, &start, &mut ctl, |_| {}).unwrap();
+        assert_eq!(walk.metrics.vel_rmse_mps, r.vel_rmse_mps, "{}", r.method);
+    }
+    assert_ne!(rows[0].vel_rmse_mps, rows[1].vel_rmse_mps);
 }

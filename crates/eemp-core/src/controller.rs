@@ -14,6 +14,7 @@ use crate::leg_control::{
     SwingGains,
 };
 use crate::robot::RobotConfig;
+use crate::slip::{FrictionAdapter, SlipConfig};
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
@@ -44,6 +45,8 @@ pub struct ControllerConfig {
     /// ±0.015 m/s RMSE of the 10 ms ones (free at 0.5 m/s better, 0.048 vs 0.128) for half the
     /// MPC time. (Before those, 20 ms made the free gait fall.)
     pub mpc_period_s: f64,
+    /// Lowering the MPC's friction coefficient when a stance foot slides ([`crate::slip`]).
+    pub slip: SlipConfig,
 }
 
 impl Default for ControllerConfig {
@@ -52,6 +55,7 @@ impl Default for ControllerConfig {
             mpc: MpcConfig::default(),
             swing: SwingGains::default(),
             mpc_period_s: 0.02,
+            slip: SlipConfig::default(),
         }
     }
 }
@@ -60,6 +64,7 @@ impl ControllerConfig {
     pub fn validate(&self) -> Result<(), ConfigError> {
         self.mpc.validate()?;
         self.swing.validate()?;
+        self.slip.validate()?;
         check_range("controller.mpc_period_s", self.mpc_period_s, 0.001, 0.1)
     }
 }
@@ -70,6 +75,8 @@ pub struct MpcEvent {
     pub status: MpcStatus,
     pub solve_time_s: f64,
     pub qp_size: (usize, usize),
+    /// The friction coefficient of this solve's pyramid (lowered after slips).
+    pub friction_coefficient: f64,
 }
 
 /// What one control step produced.
@@ -91,6 +98,8 @@ pub struct LocomotionController {
     forces_world: LegMap<Vector3<f64>>,
     last_solve_time_s: Option<f64>,
     last_stance: LegMap<bool>,
+    friction: FrictionAdapter,
+    foot_radius_m: f64,
 }
 
 impl LocomotionController {
@@ -104,6 +113,8 @@ impl LocomotionController {
             forces_world: LegMap::splat(Vector3::zeros()),
             last_solve_time_s: None,
             last_stance: LegMap::splat(false),
+            foot_radius_m: robot.leg.foot_radius_m,
+            friction: FrictionAdapter::new(config.slip.clone(), config.mpc.friction_coefficient)?,
             config,
         })
     }
@@ -126,6 +137,15 @@ impl LocomotionController {
                 clock_s - t >= self.config.mpc_period_s - 1e-9 || plan.stance != self.last_stance
             }
         };
+        let mu = self.friction.update(
+            clock_s,
+            &plan.stance,
+            &self.foot_velocities_world(state),
+            &self.forces_world,
+        );
+        if mu != self.mpc.friction_coefficient() {
+            self.mpc.set_friction_coefficient(mu);
+        }
         let mut mpc_event = None;
         if due {
             let started = std::time::Instant::now();
@@ -139,6 +159,7 @@ impl LocomotionController {
                 status: solution.status.clone(),
                 solve_time_s: started.elapsed().as_secs_f64(),
                 qp_size: solution.qp_size,
+                friction_coefficient: mu,
             });
             self.forces_world = solution.forces_world;
             self.last_solve_time_s = Some(clock_s);
@@ -209,6 +230,29 @@ impl LocomotionController {
 
     pub fn kinematics(&self) -> &LegKinematics {
         &self.kinematics
+    }
+
+    /// Stance feet slid so far ([`crate::slip`]).
+    pub fn slips(&self) -> usize {
+        self.friction.slips()
+    }
+
+    /// The velocity of each foot's lowest point (where it touches the ground), world frame,
+    /// from the state and the encoders: the sphere's centre moves at v + ω × R p_b + R J q̇, and
+    /// a foot rolling on the ground (the calf turning) moves its centre without sliding, so
+    /// the calf's rotation is taken out: + ω_calf × (−r ẑ).
+    fn foot_velocities_world(&self, state: &RobotState) -> LegMap<Vector3<f64>> {
+        let body = &state.body;
+        let r = body.r_world_body;
+        LegMap::from_fn(|leg| {
+            let j = &state.joints[leg];
+            let p = r * self.kinematics.foot_position_body(leg, &j.q);
+            let v_rel = r * (self.kinematics.foot_jacobian_body(leg, &j.q) * j.qd);
+            let v_centre = body.v_world + body.omega_world.cross(&p) + v_rel;
+            let w_calf =
+                body.omega_world + r * self.kinematics.calf_angular_velocity_body(&j.q, &j.qd);
+            v_centre + w_calf.cross(&Vector3::new(0.0, 0.0, -self.foot_radius_m))
+        })
     }
 }
 

@@ -104,6 +104,13 @@ impl LegKinematics {
         Matrix3::from_columns(&[col0, col1, col2])
     }
 
+    /// Angular velocity of the calf (and the foot sphere fixed to it) relative to the trunk,
+    /// body frame, rad/s: q̇₀ about x, then q̇₁ + q̇₂ about the abducted y axis.
+    pub fn calf_angular_velocity_body(&self, q: &Vector3<f64>, qd: &Vector3<f64>) -> Vector3<f64> {
+        let (s0, c0) = q[0].sin_cos();
+        Vector3::new(qd[0], 0.0, 0.0) + Vector3::new(0.0, c0, s0) * (qd[1] + qd[2])
+    }
+
     /// Inverse kinematics (knee-backward branch, calf angle < 0) for a foot target in the body
     /// frame, in the walking workspace: the foot below the thigh joint in the leg plane (a foot
     /// above it is reached with the abduction turned past ±π/2, which the joint range forbids).
@@ -197,6 +204,24 @@ mod tests {
 
     fn leg_strategy() -> impl Strategy<Value = Leg> {
         (0usize..4).prop_map(|i| Leg::ALL[i])
+    }
+
+    #[test]
+    fn calf_angular_velocity_matches_the_derivative_of_its_orientation() {
+        // Second method: Ṙ Rᵀ = [ω]ₓ by a central difference of the calf frame's orientation.
+        let k = kin();
+        let q = Vector3::new(0.3, 0.8, -1.5);
+        let qd = Vector3::new(-2.0, 3.0, 5.0);
+        let h = 1e-6;
+        let r = |q: Vector3<f64>| k.link_frames(Leg::FrontLeft, &q).calf.1;
+        let rdot = (r(q + qd * h) - r(q - qd * h)) / (2.0 * h);
+        let w = rdot * r(q).transpose();
+        let from_frames = Vector3::new(w[(2, 1)], w[(0, 2)], w[(1, 0)]);
+        assert_relative_eq!(
+            k.calf_angular_velocity_body(&q, &qd),
+            from_frames,
+            epsilon = 1e-6
+        );
     }
 
     #[test]

@@ -3,6 +3,7 @@
 //! - [`robot`], [`kinematics`]: the robot description and leg kinematics in named frames.
 //! - [`convex_mpc`]: stance control, the paper's eq. (2).
 //! - [`leg_control`]: swing control, eq. (1), and the stance torque map.
+//! - [`slip`]: the MPC's friction coefficient lowered when a stance foot slides.
 //! - [`planner`]: the energy-efficient planner, eqs. (5)–(7) and Algorithm 1.
 //! - [`control`]: the [`control::Controller`] interface every controller implements;
 //!   [`eemp_controller`] (EEMP walking and standing), [`joint_pd`] (joint PD, how policies act).
@@ -30,6 +31,7 @@ pub mod leg_control;
 pub mod metrics;
 pub mod planner;
 pub mod robot;
+pub mod slip;
 pub mod stand_profile;
 pub mod teleop;
 

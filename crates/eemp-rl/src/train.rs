@@ -248,6 +248,20 @@ const CSV_HEADER: [&str; 19] = [
     "total_env_steps",
 ];
 
+/// Whether a run with config `new` may continue a checkpoint of a run with config `old`: the
+/// same config, or one that only trains for longer. Nothing but a linear learning-rate schedule
+/// depends on the total, so the longer run's first iterations are the shorter run's.
+fn extends(old: &TrainConfig, new: &TrainConfig) -> bool {
+    let same_but_total = TrainConfig {
+        total_env_steps: new.total_env_steps,
+        ..old.clone()
+    };
+    same_but_total == *new
+        && (old.total_env_steps == new.total_env_steps
+            || (new.total_env_steps > old.total_env_steps
+                && new.ppo.lr_schedule != crate::config::LrSchedule::Linear))
+}
+
 fn checkpoint_dir(out: &Path) -> PathBuf {
     out.join("checkpoint")
 }
@@ -542,10 +556,11 @@ impl<E: Env> Trainer<E> {
             .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
         let s: CheckpointState = serde_json::from_str(&text)
             .map_err(|e| format!("{} is malformed: {e}", path.display()))?;
-        if s.config != self.config {
+        if !extends(&s.config, &self.config) {
             return Err(format!(
                 "{} was written by a run with another config; resume with the same config \
-                 (or train into another --out)",
+                 (or one that only raises total_env_steps, without a linear learning-rate \
+                 schedule), or train into another --out",
                 path.display()
             ));
         }

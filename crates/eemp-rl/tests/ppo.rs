@@ -114,6 +114,46 @@ fn a_resumed_cart_pole_run_equals_an_uninterrupted_one() {
 }
 
 #[test]
+fn a_finished_run_extended_to_more_steps_equals_the_longer_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let long = cart_pole(1e-3, 6 * 16 * 64);
+    let (whole, _) = run(&long, &dir.path().join("whole"), false, None);
+    // A run of 4 iterations (it checkpoints at its end), then the same config with 6.
+    let short = cart_pole(1e-3, 4 * 16 * 64);
+    let ext = dir.path().join("extended");
+    run(&short, &ext, false, None);
+    let (extended, logs) = run(&long, &ext, true, None);
+    assert_eq!(logs.first().unwrap().iteration, 5);
+    assert_eq!(params(&whole), params(&extended));
+    // Anything else changed, or a schedule that depends on the total, is refused.
+    let mut other = long.clone();
+    other.ppo.learning_rate = 2e-3;
+    let refused = |c: &TrainConfig, out: &std::path::Path| {
+        train(
+            c,
+            &RobotConfig::a1(),
+            &TrainOptions {
+                out: out.to_path_buf(),
+                resume: true,
+                threads: 1,
+                max_iterations: None,
+            },
+            &mut |_| {},
+        )
+        .err()
+        .expect("refused")
+    };
+    assert!(refused(&other, &ext).contains("another config"));
+    let mut linear = short.clone();
+    linear.ppo.lr_schedule = LrSchedule::Linear;
+    let lin = dir.path().join("linear");
+    run(&linear, &lin, false, None);
+    let mut linear_long = linear.clone();
+    linear_long.total_env_steps = long.total_env_steps;
+    assert!(refused(&linear_long, &lin).contains("linear"));
+}
+
+#[test]
 fn a_resumed_model_free_run_equals_an_uninterrupted_one() {
     // A smoke training of the A1 task (seconds): MuJoCo state, warm starts, normaliser and
     // every RNG must survive the checkpoint.

@@ -153,6 +153,9 @@ pub struct LoopStats {
     pub wall_time_s: f64,
     pub mpc_solves: usize,
     pub mpc_failures: usize,
+    /// The lowest friction coefficient an MPC solve used (lowered after slips); None without
+    /// MPC solves.
+    pub mpc_friction_min: Option<f64>,
     pub mpc_solve_times_s: Vec<f64>,
     pub fell: bool,
     pub fell_at_s: Option<f64>,
@@ -393,6 +396,11 @@ impl ClosedLoop {
         if let Some(ev) = &output.mpc_event {
             stats.mpc_solves += 1;
             stats.mpc_solve_times_s.push(ev.solve_time_s);
+            stats.mpc_friction_min = Some(
+                stats
+                    .mpc_friction_min
+                    .map_or(ev.friction_coefficient, |m| m.min(ev.friction_coefficient)),
+            );
             if !ev.status.is_solved() {
                 stats.mpc_failures += 1;
             }

@@ -247,3 +247,34 @@ fn eemp_analytical_walks_0_to_1_to_0_m_per_s_on_the_estimator_with_gait_changes(
         "single-leg swings {singles}, pair swings {pairs}"
     );
 }
+
+#[test]
+fn on_a_floor_less_grippy_than_the_mpc_assumes_slips_lower_its_friction_and_the_free_gait_walks() {
+    use eemp_core::planner::params_table::ParamsTable;
+    let tables = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tables");
+    let table = ParamsTable::load(&tables.join("a1_free.toml")).unwrap();
+    let run = |adapt: bool, friction: f64| {
+        let mut s = spec(Gait::Free, 0.3, 8.0, PlannerParams::default());
+        s.params_table = Some(table.clone());
+        s.seed = 1;
+        s.floor_friction = Some(friction);
+        s.controller.slip.adapt_friction = adapt;
+        run_walk(&RobotConfig::a1(), &s, |_| {}).unwrap()
+    };
+    // On a 0.3 floor the MPC's 0.6 pyramid makes the stance feet slide and the trunk fall.
+    let fixed = run(false, 0.3);
+    assert!(fixed.stats.fell, "the test cannot fail: walked without the adapter");
+    assert_eq!(fixed.stats.mpc_friction_min, Some(0.6));
+    let adapted = run(true, 0.3);
+    assert!(!adapted.stats.fell, "fell at {:?}", adapted.stats.fell_at_s);
+    let mu = adapted.stats.mpc_friction_min.unwrap();
+    assert!(mu <= 0.3, "the MPC's friction came down only to {mu}");
+    // On the normal floor the walk is nearly the same with and without the adapter (its few
+    // slides lower the coefficient, which the walk then hardly uses).
+    let (a, b) = (run(true, 0.8), run(false, 0.8));
+    assert!(!a.stats.fell && !b.stats.fell);
+    let (ra, rb) = (a.metrics.vel_rmse_mps.unwrap(), b.metrics.vel_rmse_mps.unwrap());
+    let (ca, cb) = (a.metrics.cot.unwrap(), b.metrics.cot.unwrap());
+    assert!((ra - rb).abs() < 0.1 * rb, "RMSE {ra} vs {rb}");
+    assert!((ca - cb).abs() < 0.05 * cb, "CoT {ca} vs {cb}");
+}

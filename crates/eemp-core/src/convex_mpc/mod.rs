@@ -178,6 +178,17 @@ impl ConvexMpc {
         &self.config
     }
 
+    /// The friction coefficient of the pyramid now.
+    pub fn friction_coefficient(&self) -> f64 {
+        self.config.friction_coefficient
+    }
+
+    /// Changes the pyramid's friction coefficient for the next solves (a floor found less grippy
+    /// than assumed, [`crate::slip`]); clamped to the configured range.
+    pub fn set_friction_coefficient(&mut self, mu: f64) {
+        self.config.friction_coefficient = mu.clamp(0.02, 2.0);
+    }
+
     pub fn body(&self) -> &CompositeBody {
         &self.body
     }

@@ -1,0 +1,244 @@
+//! The floor's friction from slips: a stance foot that slides says the floor gives less than the
+//! MPC's friction pyramid assumes, so the MPC is told a lower friction coefficient.
+//!
+//! Why: the MPC's pyramid (|f_x|, |f_y| ≤ μ f_z with μ = 0.6 by default) lets its corners reach
+//! √2·μ = 0.85, and the forces the legs really put on the ground also carry the leg's own
+//! dynamics, so on a 0.3 floor the stance feet slide and the trunk falls within 2 s. A robot
+//! does not know the floor beforehand; it feels the slip. On the normal floor (0.8) a few feet
+//! slide too (the free and walk gaits at 0.1 m/s, loaded feet at the start) and lower the
+//! coefficient, which those walks then hardly use: tracking and CoT stay within a few percent.
+//!
+//! Rule: a foot in planned stance for at least [`SlipConfig::settle_s`] and loaded by the MPC
+//! whose horizontal ground speed exceeds [`SlipConfig::speed_threshold_mps`] starts a slip. At a slip the coefficient drops
+//! to `backoff` × itself, never below `min_friction`; a leg counts one slip per stance. Without
+//! slips the coefficient climbs back towards the nominal at `recovery_per_s`. (The ratio of the
+//! force the MPC asked of the sliding foot is no estimate of the floor's friction: the forces
+//! on the ground also carry the legs' dynamics, and feet slid while asked for less than 0.3.)
+
+use crate::config_error::{check_range, ConfigError};
+use crate::leg::{Leg, LegMap};
+use nalgebra::Vector3;
+use serde::{Deserialize, Serialize};
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SlipConfig {
+    /// Lower the MPC's friction coefficient when a stance foot slides.
+    pub adapt_friction: bool,
+    /// Horizontal ground speed above which a stance foot slides, m/s (the Kalman filter's
+    /// velocity error is ≈ 0.03 m/s; a planted foot on the A1's floor moves < 0.02 m/s). Low, so
+    /// a slip is caught at its start: a 0.15 threshold caught the free gait's first slips on a
+    /// 0.3 floor too late (it fell at 1.8 s at 0.3 m/s).
+    pub speed_threshold_mps: f64,
+    /// Only a foot the MPC asks to carry at least this normal force counts, N (an unloaded foot
+    /// that drags, as the walk's rear feet do before lift-off, says nothing about the floor).
+    pub min_normal_force_n: f64,
+    /// Time after touchdown before a foot can count as sliding, s (touchdown transients).
+    pub settle_s: f64,
+    /// Factor on the coefficient at a slip.
+    pub backoff: f64,
+    /// The coefficient never drops below this.
+    pub min_friction: f64,
+    /// Recovery towards the nominal coefficient without slips, per second.
+    pub recovery_per_s: f64,
+}
+
+impl Default for SlipConfig {
+    fn default() -> Self {
+        SlipConfig {
+            adapt_friction: true,
+            speed_threshold_mps: 0.1,
+            min_normal_force_n: 15.0,
+            settle_s: 0.04,
+            backoff: 0.7,
+            min_friction: 0.1,
+            recovery_per_s: 0.02,
+        }
+    }
+}
+
+impl SlipConfig {
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        check_range(
+            "slip.speed_threshold_mps",
+            self.speed_threshold_mps,
+            0.01,
+            2.0,
+        )?;
+        check_range(
+            "slip.min_normal_force_n",
+            self.min_normal_force_n,
+            0.0,
+            1000.0,
+        )?;
+        check_range("slip.settle_s", self.settle_s, 0.0, 1.0)?;
+        check_range("slip.backoff", self.backoff, 0.1, 1.0)?;
+        check_range("slip.min_friction", self.min_friction, 0.02, 2.0)?;
+        check_range("slip.recovery_per_s", self.recovery_per_s, 0.0, 10.0)
+    }
+}
+
+/// The MPC's friction coefficient, lowered at slips.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FrictionAdapter {
+    config: SlipConfig,
+    nominal: f64,
+    current: f64,
+    stance_since: LegMap<Option<f64>>,
+    slipped_this_stance: LegMap<bool>,
+    last_t: Option<f64>,
+    slips: usize,
+}
+
+impl FrictionAdapter {
+    pub fn new(config: SlipConfig, nominal: f64) -> Result<Self, ConfigError> {
+        config.validate()?;
+        Ok(FrictionAdapter {
+            current: nominal,
+            nominal,
+            config,
+            stance_since: LegMap::splat(None),
+            slipped_this_stance: LegMap::splat(false),
+            last_t: None,
+            slips: 0,
+        })
+    }
+
+    /// The coefficient to use now.
+    pub fn friction_coefficient(&self) -> f64 {
+        self.current
+    }
+
+    /// Slips seen so far.
+    pub fn slips(&self) -> usize {
+        self.slips
+    }
+
+    /// One control step at `t_s`: the planned stance, each foot's ground velocity (world, m/s)
+    /// and the forces the MPC asks of the feet (world, N). Returns the coefficient.
+    pub fn update(
+        &mut self,
+        t_s: f64,
+        stance: &LegMap<bool>,
+        foot_velocity_world: &LegMap<Vector3<f64>>,
+        forces_world: &LegMap<Vector3<f64>>,
+    ) -> f64 {
+        if !self.config.adapt_friction {
+            return self.current;
+        }
+        let dt = self.last_t.map(|l| (t_s - l).max(0.0)).unwrap_or(0.0);
+        self.last_t = Some(t_s);
+        self.current = (self.current + self.config.recovery_per_s * dt).min(self.nominal);
+        for leg in Leg::ALL {
+            if !stance[leg] {
+                self.stance_since[leg] = None;
+                self.slipped_this_stance[leg] = false;
+                continue;
+            }
+            let since = *self.stance_since[leg].get_or_insert(t_s);
+            let v = foot_velocity_world[leg];
+            let sliding = t_s - since >= self.config.settle_s
+                && forces_world[leg].z >= self.config.min_normal_force_n
+                && v.x.hypot(v.y) > self.config.speed_threshold_mps;
+            if sliding && !self.slipped_this_stance[leg] {
+                self.slipped_this_stance[leg] = true;
+                self.slips += 1;
+                self.current = (self.config.backoff * self.current)
+                    .max(self.config.min_friction)
+                    .min(self.current);
+            }
+        }
+        self.current
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn still() -> LegMap<Vector3<f64>> {
+        LegMap::splat(Vector3::zeros())
+    }
+
+    fn loaded() -> LegMap<Vector3<f64>> {
+        LegMap::splat(Vector3::new(5.0, 0.0, 40.0))
+    }
+
+    #[test]
+    fn planted_feet_leave_the_coefficient_alone() {
+        let mut a = FrictionAdapter::new(SlipConfig::default(), 0.6).unwrap();
+        let mut v = still();
+        v[Leg::FrontRight] = Vector3::new(0.09, 0.0, 0.0); // below the threshold
+        v[Leg::RearLeft] = Vector3::new(0.0, 0.0, 0.3); // moving up: not a slide over the ground
+        v[Leg::FrontLeft] = Vector3::new(0.5, 0.0, 0.0); // dragged, but carries nothing: no slide
+        let mut forces = loaded();
+        forces[Leg::FrontLeft].z = 5.0;
+        for k in 0..1000 {
+            assert_eq!(
+                a.update(k as f64 * 1e-3, &LegMap::splat(true), &v, &forces),
+                0.6
+            );
+        }
+        assert_eq!(a.slips(), 0);
+    }
+
+    #[test]
+    fn a_slip_lowers_the_coefficient_by_the_backoff_and_it_recovers() {
+        let mut a = FrictionAdapter::new(SlipConfig::default(), 0.6).unwrap();
+        let stance = LegMap::splat(true);
+        let mut v = still();
+        a.update(0.0, &stance, &v, &loaded());
+        // A slide right after touchdown (within settle_s) is a transient, not a slip.
+        v[Leg::FrontRight] = Vector3::new(0.06, 0.07, 0.0); // below the threshold
+        assert_eq!(a.update(0.02, &stance, &v, &loaded()), 0.6);
+        v[Leg::FrontRight] = Vector3::new(0.3, 0.0, 0.0);
+        assert_eq!(a.update(0.03, &stance, &v, &loaded()), 0.6);
+        // Later in the stance it is: 0.7 × 0.6 = 0.42 (recovery 0.02/s × 0.02 s first).
+        let mu = a.update(0.05, &stance, &v, &loaded());
+        assert!((mu - 0.42).abs() < 1e-12, "{mu}");
+        // The same stance does not count twice.
+        assert!((a.update(0.06, &stance, &v, &loaded()) - (0.42 + 0.02 * 0.01)).abs() < 1e-12);
+        assert_eq!(a.slips(), 1);
+        // A second leg slipping is a second slip: 0.7 × 0.4202.
+        v[Leg::RearLeft] = Vector3::new(0.0, -0.2, 0.0);
+        let mu = a.update(0.07, &stance, &v, &loaded());
+        assert!((mu - 0.7 * (0.42 + 0.02 * 0.02)).abs() < 1e-12, "{mu}");
+        // Without slips it climbs back at 0.02 per second, up to the nominal.
+        let v = still();
+        let mu2 = a.update(5.07, &stance, &v, &loaded());
+        assert!((mu2 - (mu + 0.02 * 5.0)).abs() < 1e-9, "{mu2}");
+        assert_eq!(a.update(100.0, &stance, &v, &loaded()), 0.6);
+    }
+
+    #[test]
+    fn the_coefficient_never_drops_below_its_floor_and_can_be_switched_off() {
+        let mut a = FrictionAdapter::new(SlipConfig::default(), 0.6).unwrap();
+        let v = LegMap::splat(Vector3::new(0.5, 0.0, 0.0));
+        let mut t = 0.0;
+        for _ in 0..20 {
+            // Lift and put down every leg: a new stance, a new slip.
+            a.update(t, &LegMap::splat(false), &v, &loaded());
+            a.update(t + 0.001, &LegMap::splat(true), &v, &loaded());
+            t += 0.1;
+            a.update(t, &LegMap::splat(true), &v, &loaded());
+        }
+        assert!((a.friction_coefficient() - 0.1).abs() < 1e-12);
+        let mut off = FrictionAdapter::new(
+            SlipConfig {
+                adapt_friction: false,
+                ..Default::default()
+            },
+            0.6,
+        )
+        .unwrap();
+        assert_eq!(off.update(1.0, &LegMap::splat(true), &v, &loaded()), 0.6);
+        assert!(SlipConfig {
+            backoff: 0.0,
+            ..Default::default()
+        }
+        .validate()
+        .unwrap_err()
+        .to_string()
+        .contains("slip.backoff"));
+    }
+}
