@@ -42,6 +42,9 @@ pub struct MethodConfig {
     /// method on ground truth beside it on the filter).
     #[serde(default)]
     pub estimator: Option<String>,
+    /// EEMP: lower the MPC's friction coefficient after slips (`eemp_core::slip`).
+    #[serde(default)]
+    pub adapt_friction: bool,
 }
 
 impl MethodConfig {
@@ -209,6 +212,13 @@ impl SuiteConfig {
                     ParamsTable::load(&t).map_err(|e| format!("method '{}': {e}", m.name))?;
                 }
                 k @ ("model-free" | "imitation" | "eemp-rl") => {
+                    if m.adapt_friction {
+                        return Err(format!(
+                            "method '{}': adapt_friction is for kind eemp (a policy runs with \
+                             the controller it was trained with)",
+                            m.name
+                        ));
+                    }
                     let p = m.policy.as_ref().ok_or_else(|| {
                         format!("method '{}': kind {k} needs policy = FILE", m.name)
                     })?;
@@ -340,6 +350,7 @@ pub fn simulate(
                 .clone()
                 .unwrap_or_else(|| format!("tables/a1_{gait}.toml").into());
             spec.params_table = Some(ParamsTable::load(&t).map_err(|e| e.to_string())?);
+            spec.controller.slip.adapt_friction = m.adapt_friction;
             let mut c = eemp_controller(robot, &spec).map_err(|e| e.to_string())?;
             let start = StartPose::eemp(robot, &spec).map_err(|e| e.to_string())?;
             run_walk_with(robot, &spec, &start, &mut c, |_| {})

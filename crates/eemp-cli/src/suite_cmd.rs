@@ -603,8 +603,8 @@ pub fn robustness(args: &SuiteArgs) -> Result<(), String> {
         .filter(|(a, b)| {
             a.estimator(&cfg) == "kf"
                 && b.estimator(&cfg) == "ground-truth"
-                && (&a.kind, &a.gait, &a.table, &a.policy)
-                    == (&b.kind, &b.gait, &b.table, &b.policy)
+                && (&a.kind, &a.gait, &a.table, &a.policy, a.adapt_friction)
+                    == (&b.kind, &b.gait, &b.table, &b.policy, b.adapt_friction)
         })
         .collect();
     if !pairs.is_empty() {

@@ -86,6 +86,10 @@ pub struct WalkArgs {
     /// floor's. Default: `MpcConfig`'s 0.6.
     #[arg(long)]
     pub mpc_friction: Option<f64>,
+    /// Lower the MPC's friction coefficient when a loaded stance foot slides (`eemp_core::slip`;
+    /// helps on floors less grippy than assumed, hurts recovery from pushes).
+    #[arg(long)]
+    pub adapt_friction: bool,
     /// MPC horizon, steps of its dt (default: MpcConfig's 10).
     #[arg(long)]
     pub mpc_horizon: Option<usize>,
@@ -199,6 +203,7 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
     if let Some(mu) = args.mpc_friction {
         spec.controller.mpc.friction_coefficient = mu;
     }
+    spec.controller.slip.adapt_friction = args.adapt_friction;
     spec.seed = args.sensing.seed;
     spec.state_source = args.sensing.source(&robot)?;
     spec.floor_friction = args.friction;
@@ -420,6 +425,7 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
         "mpc_solves": st.mpc_solves,
         "mpc_failures": st.mpc_failures,
         "mpc_friction_min": st.mpc_friction_min,
+        "adapt_friction": args.adapt_friction,
         "mpc_solve_us_median": st.mpc_solve_median_us(),
         "time_share": {
             "physics": st.stages.physics_s / total,

@@ -22,6 +22,7 @@ fn config() -> SuiteConfig {
                 table: Some(repo("tables/a1_trot.toml")),
                 policy: None,
                 estimator: None,
+                adapt_friction: false,
             },
             MethodConfig {
                 name: "model-free RL".into(),
@@ -30,6 +31,7 @@ fn config() -> SuiteConfig {
                 table: None,
                 policy: Some(repo("policies/a1_model_free.safetensors")),
                 estimator: None,
+                adapt_friction: false,
             },
         ],
         scenarios: vec![

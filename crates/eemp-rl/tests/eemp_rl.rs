@@ -65,7 +65,13 @@ fn a_fixed_answer_walks_exactly_as_eemp_with_those_parameters() {
     let cfg = EempRlConfig::default();
     let action = unsquash(&PlannerParams::default());
     let params = squash(&action);
-    let mut spec = walk_spec(params, 4.0);
+    let mut spec = walk_spec(
+        &EempRlConfig {
+            episode_s: 4.0,
+            ..cfg.clone()
+        },
+        params,
+    );
     spec.profile = VelocityProfile::constant(
         0.0,
         VelocityCommand {

@@ -263,7 +263,10 @@ fn on_a_floor_less_grippy_than_the_mpc_assumes_slips_lower_its_friction_and_the_
     };
     // On a 0.3 floor the MPC's 0.6 pyramid makes the stance feet slide and the trunk fall.
     let fixed = run(false, 0.3);
-    assert!(fixed.stats.fell, "the test cannot fail: walked without the adapter");
+    assert!(
+        fixed.stats.fell,
+        "the test cannot fail: walked without the adapter"
+    );
     assert_eq!(fixed.stats.mpc_friction_min, Some(0.6));
     let adapted = run(true, 0.3);
     assert!(!adapted.stats.fell, "fell at {:?}", adapted.stats.fell_at_s);
@@ -273,7 +276,10 @@ fn on_a_floor_less_grippy_than_the_mpc_assumes_slips_lower_its_friction_and_the_
     // slides lower the coefficient, which the walk then hardly uses).
     let (a, b) = (run(true, 0.8), run(false, 0.8));
     assert!(!a.stats.fell && !b.stats.fell);
-    let (ra, rb) = (a.metrics.vel_rmse_mps.unwrap(), b.metrics.vel_rmse_mps.unwrap());
+    let (ra, rb) = (
+        a.metrics.vel_rmse_mps.unwrap(),
+        b.metrics.vel_rmse_mps.unwrap(),
+    );
     let (ca, cb) = (a.metrics.cot.unwrap(), b.metrics.cot.unwrap());
     assert!((ra - rb).abs() < 0.1 * rb, "RMSE {ra} vs {rb}");
     assert!((ca - cb).abs() < 0.05 * cb, "CoT {ca} vs {cb}");
