@@ -555,7 +555,7 @@ impl<P: ParamsPolicy> EempRlController<P> {
 
     /// The start pose EEMP-RL walks from (EEMP's, at Table II's height).
     pub fn start_pose(robot: &RobotConfig, config: &EempRlConfig) -> Result<StartPose, String> {
-        StartPose::eemp(robot, &walk_spec(&config, PlannerParams::default()))
+        StartPose::eemp(robot, &walk_spec(config, PlannerParams::default()))
             .map_err(|e| e.to_string())
     }
 }
