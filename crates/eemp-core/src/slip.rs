@@ -220,7 +220,10 @@ mod tests {
         let mut a = FrictionAdapter::new(on(), 0.6).unwrap();
         let v = LegMap::splat(Vector3::new(0.0, 0.5, 0.0));
         for k in 0..200 {
-            assert_eq!(a.update(k as f64 * 1e-3, &LegMap::splat(true), &v, &loaded()), 0.6);
+            assert_eq!(
+                a.update(k as f64 * 1e-3, &LegMap::splat(true), &v, &loaded()),
+                0.6
+            );
         }
         // One of them faster than the rest by more than the threshold is a slip.
         let mut w = v;
