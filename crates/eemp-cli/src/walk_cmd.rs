@@ -142,6 +142,13 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
             ))
         }
     };
+    if args.adapt_friction && args.controller != "eemp" {
+        return Err(format!(
+            "--adapt-friction is for --controller eemp, not {} (a policy runs with the \
+             controller it was trained with)",
+            args.controller
+        ));
+    }
     if !(args.duration.is_finite() && args.duration > 0.0 && args.duration <= 3600.0) {
         return Err(format!(
             "--duration {} is out of range: allowed (0, 3600] s",

@@ -137,15 +137,18 @@ impl LocomotionController {
                 clock_s - t >= self.config.mpc_period_s - 1e-9 || plan.stance != self.last_stance
             }
         };
-        let mu = self.friction.update(
-            clock_s,
-            &plan.stance,
-            &self.foot_velocities_world(state),
-            &self.forces_world,
-        );
-        if mu != self.mpc.friction_coefficient() {
-            self.mpc.set_friction_coefficient(mu);
+        if self.config.slip.adapt_friction {
+            let mu = self.friction.update(
+                clock_s,
+                &plan.stance,
+                &self.foot_velocities_world(state),
+                &self.forces_world,
+            );
+            if mu != self.mpc.friction_coefficient() {
+                self.mpc.set_friction_coefficient(mu);
+            }
         }
+        let mu = self.mpc.friction_coefficient();
         let mut mpc_event = None;
         if due {
             let started = std::time::Instant::now();

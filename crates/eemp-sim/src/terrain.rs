@@ -261,12 +261,7 @@ impl Terrain {
     /// The MJCF pieces of this terrain; `floor_friction` is the robot file's.
     pub fn scene(&self, floor_friction: f64) -> SceneExtras {
         let mut x = SceneExtras::default();
-        let geom = |name: &str, body: &str, mu: f64, priority: u8| {
-            let solimp = if name == "terrain_rough" {
-                HFIELD_SOLIMP
-            } else {
-                SOLIMP
-            };
+        let geom = |name: &str, body: &str, mu: f64, priority: u8, solimp: &str| {
             format!(
                 r#"    <geom name="{name}" {body} contype="1" conaffinity="1" priority="{priority}" condim="3" friction="{mu} 0.02 0.01" solimp="{solimp}" rgba="0.7 0.7 0.75 1"/>
 "#
@@ -298,6 +293,7 @@ impl Terrain {
                 &format!(r#"type="hfield" hfield="rough" pos="0 0 {lo}""#),
                 floor_friction,
                 1,
+                HFIELD_SOLIMP,
             );
             x.floor_z_m = Self::rough_floor(r);
         }
@@ -326,6 +322,7 @@ impl Terrain {
                     ),
                     floor_friction,
                     1,
+                    SOLIMP,
                 );
             }
             if r.plateau_m > 0.0 {
@@ -340,6 +337,7 @@ impl Terrain {
                     ),
                     floor_friction,
                     1,
+                    SOLIMP,
                 );
             }
         }
@@ -354,6 +352,7 @@ impl Terrain {
                 ),
                 floor_friction,
                 1,
+                SOLIMP,
             );
         }
         for (i, p) in self.friction_patch.iter().enumerate() {

@@ -227,6 +227,7 @@ impl WalkSpec {
             self.payload_kg,
         )
     }
+
     /// A constant-speed run of `duration_s` starting 0.5 s after t = 0, metrics from 2 s.
     pub fn constant(
         planner: PlannerConfig,

@@ -18,6 +18,9 @@ use nalgebra::{DMatrix, DVector, Vector3};
 pub use qp_backend::{QpError, QpSolverKind};
 use serde::{Deserialize, Serialize};
 
+/// Allowed friction coefficients of the pyramid (config and [`ConvexMpc::set_friction_coefficient`]).
+pub const FRICTION_RANGE: [f64; 2] = [0.05, 2.0];
+
 /// MPC settings. Weights are on squared errors summed over the horizon.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -77,8 +80,8 @@ impl MpcConfig {
         check_range(
             "mpc.friction_coefficient",
             self.friction_coefficient,
-            0.05,
-            2.0,
+            FRICTION_RANGE[0],
+            FRICTION_RANGE[1],
         )?;
         check_range("mpc.f_min_n", self.f_min_n, 0.0, 1000.0)?;
         check_range("mpc.f_max_n", self.f_max_n, self.f_min_n.max(1.0), 5000.0)?;
@@ -186,7 +189,7 @@ impl ConvexMpc {
     /// Changes the pyramid's friction coefficient for the next solves (a floor found less grippy
     /// than assumed, [`crate::slip`]); clamped to the configured range.
     pub fn set_friction_coefficient(&mut self, mu: f64) {
-        self.config.friction_coefficient = mu.clamp(0.02, 2.0);
+        self.config.friction_coefficient = mu.clamp(FRICTION_RANGE[0], FRICTION_RANGE[1]);
     }
 
     pub fn body(&self) -> &CompositeBody {
