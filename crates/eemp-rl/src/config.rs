@@ -191,6 +191,20 @@ pub struct TrainConfig {
     pub imitation: ImitationConfig,
     pub eemp_rl: EempRlConfig,
     pub cart_pole: CartPoleConfig,
+    /// What the policy observes (and EEMP-RL's controller sees): the simulator's state, or the
+    /// Kalman filter on the simulated IMU and encoders with A1-like noise, as on the robot.
+    pub estimator: TrainEstimator,
+}
+
+/// The state a policy trains on. On the filter a checkpoint holds no filter or sensor state:
+/// a resumed run restarts each env's filter at its restored pose, so it is deterministic but
+/// not bit-equal to an uninterrupted run (on ground truth it is).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum TrainEstimator {
+    #[default]
+    GroundTruth,
+    Kf,
 }
 
 impl Default for TrainConfig {
@@ -208,6 +222,7 @@ impl Default for TrainConfig {
             imitation: ImitationConfig::default(),
             eemp_rl: EempRlConfig::default(),
             cart_pole: CartPoleConfig::default(),
+            estimator: TrainEstimator::GroundTruth,
         }
     }
 }
@@ -230,6 +245,13 @@ impl TrainConfig {
         }
         self.ppo.validate()?;
         self.network.validate()?;
+        if self.task == TaskKind::CartPole && self.estimator == TrainEstimator::Kf {
+            return Err(ConfigError::Invalid {
+                name: "estimator".into(),
+                message: "\"kf\" is for the A1 tasks, not cart-pole (allowed: \"ground-truth\")"
+                    .into(),
+            });
+        }
         match self.task {
             TaskKind::ModelFree => self.model_free.validate(),
             TaskKind::Imitation => self.imitation.validate(),

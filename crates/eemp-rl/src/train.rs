@@ -7,7 +7,7 @@
 //! rows of `train.csv` after the checkpoint are dropped and rewritten.
 
 use crate::adam::Adam;
-use crate::config::{TaskKind, TrainConfig};
+use crate::config::{TaskKind, TrainConfig, TrainEstimator};
 use crate::env::{Env, VecEnv};
 use crate::imitation::motion::ReferenceMotion;
 use crate::nn::gaussian_log_prob;
@@ -20,6 +20,8 @@ use crate::tasks::model_free::{training_model, ModelFreeEnv};
 use crate::tensor_file::TensorFile;
 use candle_core::{Device, Tensor};
 use eemp_core::robot::RobotConfig;
+use eemp_sim::closed_loop::StateSource;
+use eemp_sim::sensors::SensorNoise;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
@@ -152,12 +154,25 @@ pub fn make_envs_with(
     threads: usize,
     motion: Option<(ReferenceMotion, String)>,
 ) -> Result<AnyVecEnv, String> {
+    // On the filter each env has its own sensor noise, seeded from the config's seed.
+    let source = |i: usize| match config.estimator {
+        TrainEstimator::GroundTruth => StateSource::GroundTruth,
+        TrainEstimator::Kf => StateSource::kf(
+            robot,
+            SensorNoise::default(),
+            config.seed.wrapping_mul(0x9E37_79B9).wrapping_add(i as u64),
+        ),
+    };
     Ok(match config.task {
         TaskKind::ModelFree => {
             let model = training_model(robot, &config.model_free)?;
             let envs = (0..config.num_envs)
-                .map(|_| ModelFreeEnv::new(robot, model.clone(), config.model_free.clone()))
-                .collect::<Result<Vec<_>, _>>()?;
+                .map(|i| {
+                    let mut e = ModelFreeEnv::new(robot, model.clone(), config.model_free.clone())?;
+                    e.set_state_source(&source(i))?;
+                    Ok(e)
+                })
+                .collect::<Result<Vec<_>, String>>()?;
             AnyVecEnv::ModelFree(VecEnv::new(envs, config.seed, threads)?)
         }
         TaskKind::Imitation => {
@@ -171,8 +186,12 @@ pub fn make_envs_with(
             let model = eemp_sim::backend::build_model(&r, &Default::default())
                 .map_err(|e| e.to_string())?;
             let envs = (0..config.num_envs)
-                .map(|_| ImitationEnv::new(robot, model.clone(), c.clone(), &motion))
-                .collect::<Result<Vec<_>, _>>()?;
+                .map(|i| {
+                    let mut e = ImitationEnv::new(robot, model.clone(), c.clone(), &motion)?;
+                    e.set_state_source(&source(i))?;
+                    Ok(e)
+                })
+                .collect::<Result<Vec<_>, String>>()?;
             AnyVecEnv::Imitation(VecEnv::new(envs, config.seed, threads)?, text)
         }
         TaskKind::EempRl => {
@@ -180,8 +199,12 @@ pub fn make_envs_with(
             let model = eemp_sim::backend::build_model(robot, &Default::default())
                 .map_err(|e| e.to_string())?;
             let envs = (0..config.num_envs)
-                .map(|_| EempRlEnv::new(robot, model.clone(), config.eemp_rl.clone()))
-                .collect::<Result<Vec<_>, _>>()?;
+                .map(|i| {
+                    let mut e = EempRlEnv::new(robot, model.clone(), config.eemp_rl.clone())?;
+                    e.set_state_source(&source(i))?;
+                    Ok(e)
+                })
+                .collect::<Result<Vec<_>, String>>()?;
             AnyVecEnv::EempRl(VecEnv::new(envs, config.seed, threads)?)
         }
         TaskKind::CartPole => {

@@ -199,6 +199,8 @@ pub struct ClosedLoop {
     wall_start: Instant,
     loaded: LegMap<bool>,
     estimator: Option<(LinearKf, Sensors)>,
+    /// The state the controller saw at the last step, when it is an estimate.
+    last_estimate: Option<RobotState>,
     estimation: EstimationStats,
     trust: ContactTrust,
     last_torques: LegMap<Vector3<f64>>,
@@ -217,6 +219,7 @@ impl ClosedLoop {
         let t_start = sim.time_s();
         ClosedLoop {
             estimator: None,
+            last_estimate: None,
             estimation: EstimationStats::default(),
             trust: ContactTrust::new(t_start),
             last_torques: LegMap::splat(Vector3::zeros()),
@@ -255,6 +258,35 @@ impl ClosedLoop {
         Ok(lp)
     }
 
+    /// Puts the controller on `source` from now on (the filter starts at the current true
+    /// state), as [`ClosedLoop::with_state_source`] does at the start.
+    pub fn set_state_source(
+        &mut self,
+        source: &StateSource,
+    ) -> Result<(), eemp_core::config_error::ConfigError> {
+        self.estimator = match source {
+            StateSource::GroundTruth => None,
+            StateSource::Kf { kf, sensors, seed } => {
+                self.sim.prepare_kinematics();
+                let start = self.sim.ground_truth_state();
+                Some((
+                    LinearKf::new(kf.clone(), self.sim.kinematics().clone(), &start)?,
+                    Sensors::new(sensors.clone(), *seed, self.sim.timestep_s())?,
+                ))
+            }
+        };
+        self.last_estimate = None;
+        Ok(())
+    }
+
+    /// What the robot knows of itself now: the estimate its controller saw at the last step,
+    /// or the simulator's state on ground truth (and right after a start, when the filter
+    /// starts from the known pose).
+    pub fn observed_state(&self) -> RobotState {
+        self.last_estimate
+            .unwrap_or_else(|| self.sim.ground_truth_state())
+    }
+
     pub fn estimation(&self) -> &EstimationStats {
         &self.estimation
     }
@@ -269,6 +301,7 @@ impl ClosedLoop {
         self.trust = ContactTrust::new(self.t_start);
         self.last_torques = LegMap::splat(Vector3::zeros());
         self.estimation = EstimationStats::default();
+        self.last_estimate = None;
         if let Some((kf, sensors)) = self.estimator.as_mut() {
             self.sim.prepare_kinematics();
             kf.reset(&self.sim.ground_truth_state());
@@ -352,6 +385,9 @@ impl ClosedLoop {
                 est
             }
         };
+        if self.estimator.is_some() {
+            self.last_estimate = Some(state);
+        }
         let t1 = Instant::now();
         let feet = feet_world(self.sim.kinematics(), &state);
         let t2 = Instant::now();

@@ -222,6 +222,17 @@ pub struct EempRlEnv {
 }
 
 impl EempRlEnv {
+    /// Observes (and, for EEMP, controls) through `source` from now on: the policy then
+    /// trains on what the robot senses (`estimator = "kf"` in the training config).
+    pub fn set_state_source(
+        &mut self,
+        source: &eemp_sim::closed_loop::StateSource,
+    ) -> Result<(), String> {
+        self.loop_
+            .set_state_source(source)
+            .map_err(|e| e.to_string())
+    }
+
     pub fn new(
         robot: &RobotConfig,
         model: Arc<MjModel>,
@@ -271,7 +282,7 @@ impl EempRlEnv {
     }
 
     fn write_obs(&self, out: &mut [f32]) {
-        let s = self.loop_.sim().ground_truth_state();
+        let s = self.loop_.observed_state();
         write_observation(
             &ObsParts {
                 kin: &self.kin,

@@ -630,6 +630,17 @@ pub fn training_model(
 }
 
 impl ModelFreeEnv {
+    /// Observes (and, for EEMP, controls) through `source` from now on: the policy then
+    /// trains on what the robot senses (`estimator = "kf"` in the training config).
+    pub fn set_state_source(
+        &mut self,
+        source: &eemp_sim::closed_loop::StateSource,
+    ) -> Result<(), String> {
+        self.loop_
+            .set_state_source(source)
+            .map_err(|e| e.to_string())
+    }
+
     pub fn new(
         robot: &RobotConfig,
         model: Arc<MjModel>,
@@ -696,7 +707,7 @@ impl ModelFreeEnv {
     }
 
     fn write_obs(&self, obs: &mut [f32]) {
-        let state = self.loop_.sim().ground_truth_state();
+        let state = self.loop_.observed_state();
         observe(
             &self.config.extra_obs,
             &self.kin,
