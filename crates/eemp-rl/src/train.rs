@@ -17,6 +17,7 @@ use crate::tasks::cartpole::{cartpole_model, CartPole};
 use crate::tasks::eemp_rl::EempRlEnv;
 use crate::tasks::imitation::ImitationEnv;
 use crate::tasks::model_free::{training_model, ModelFreeEnv};
+use crate::tasks::OnClosedLoop;
 use crate::tensor_file::TensorFile;
 use candle_core::{Device, Tensor};
 use eemp_core::robot::RobotConfig;
@@ -146,6 +147,21 @@ pub fn make_envs(
     make_envs_with(config, robot, threads, None)
 }
 
+/// `n` environments from `make`, environment i on `source(i)`.
+fn envs_on<E: OnClosedLoop>(
+    n: usize,
+    make: impl Fn() -> Result<E, String>,
+    source: &dyn Fn(usize) -> StateSource,
+) -> Result<Vec<E>, String> {
+    (0..n)
+        .map(|i| {
+            let mut e = make()?;
+            e.set_state_source(&source(i))?;
+            Ok(e)
+        })
+        .collect()
+}
+
 /// [`make_envs`] with an imitation task's motion given (as [`parse_motion`] returns it) instead
 /// of read from the config's file.
 pub fn make_envs_with(
@@ -166,13 +182,11 @@ pub fn make_envs_with(
     Ok(match config.task {
         TaskKind::ModelFree => {
             let model = training_model(robot, &config.model_free)?;
-            let envs = (0..config.num_envs)
-                .map(|i| {
-                    let mut e = ModelFreeEnv::new(robot, model.clone(), config.model_free.clone())?;
-                    e.set_state_source(&source(i))?;
-                    Ok(e)
-                })
-                .collect::<Result<Vec<_>, String>>()?;
+            let envs = envs_on(
+                config.num_envs,
+                || ModelFreeEnv::new(robot, model.clone(), config.model_free.clone()),
+                &source,
+            )?;
             AnyVecEnv::ModelFree(VecEnv::new(envs, config.seed, threads)?)
         }
         TaskKind::Imitation => {
@@ -185,26 +199,22 @@ pub fn make_envs_with(
             r.simulation.timestep_s = c.train_timestep_s;
             let model = eemp_sim::backend::build_model(&r, &Default::default())
                 .map_err(|e| e.to_string())?;
-            let envs = (0..config.num_envs)
-                .map(|i| {
-                    let mut e = ImitationEnv::new(robot, model.clone(), c.clone(), &motion)?;
-                    e.set_state_source(&source(i))?;
-                    Ok(e)
-                })
-                .collect::<Result<Vec<_>, String>>()?;
+            let envs = envs_on(
+                config.num_envs,
+                || ImitationEnv::new(robot, model.clone(), c.clone(), &motion),
+                &source,
+            )?;
             AnyVecEnv::Imitation(VecEnv::new(envs, config.seed, threads)?, text)
         }
         TaskKind::EempRl => {
             // EEMP runs at the robot file's time step (its MPC and swing law are tuned there).
             let model = eemp_sim::backend::build_model(robot, &Default::default())
                 .map_err(|e| e.to_string())?;
-            let envs = (0..config.num_envs)
-                .map(|i| {
-                    let mut e = EempRlEnv::new(robot, model.clone(), config.eemp_rl.clone())?;
-                    e.set_state_source(&source(i))?;
-                    Ok(e)
-                })
-                .collect::<Result<Vec<_>, String>>()?;
+            let envs = envs_on(
+                config.num_envs,
+                || EempRlEnv::new(robot, model.clone(), config.eemp_rl.clone()),
+                &source,
+            )?;
             AnyVecEnv::EempRl(VecEnv::new(envs, config.seed, threads)?)
         }
         TaskKind::CartPole => {

@@ -237,29 +237,18 @@ impl ClosedLoop {
     /// Starts an episode whose controller sees `source` (the filter starts at the current true
     /// state: the robot is put down at a known pose).
     pub fn with_state_source(
-        mut sim: Simulation,
+        sim: Simulation,
         pushes: &[Push],
         limits: FallLimits,
         source: &StateSource,
     ) -> Result<Self, eemp_core::config_error::ConfigError> {
-        let estimator = match source {
-            StateSource::GroundTruth => None,
-            StateSource::Kf { kf, sensors, seed } => {
-                sim.prepare_kinematics();
-                let start = sim.ground_truth_state();
-                Some((
-                    LinearKf::new(kf.clone(), sim.kinematics().clone(), &start)?,
-                    Sensors::new(sensors.clone(), *seed, sim.timestep_s())?,
-                ))
-            }
-        };
         let mut lp = ClosedLoop::new(sim, pushes, limits);
-        lp.estimator = estimator;
+        lp.set_state_source(source)?;
         Ok(lp)
     }
 
     /// Puts the controller on `source` from now on (the filter starts at the current true
-    /// state), as [`ClosedLoop::with_state_source`] does at the start.
+    /// state).
     pub fn set_state_source(
         &mut self,
         source: &StateSource,

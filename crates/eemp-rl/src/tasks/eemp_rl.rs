@@ -125,9 +125,10 @@ pub struct EempRlConfig {
     /// CoT of an interval is clipped here (a standing interval has no distance).
     pub cot_clip: f64,
     /// The controller lowers the MPC's friction after slips (`eemp_core::slip`). Off by
-    /// default: the shipped policy was trained before the adapter existed, and a policy runs
-    /// with the controller it was trained with (with the adapter on, the same policy fell in 1
-    /// to 6 of the comparison's 30 runs, against 0 to 1 without).
+    /// default: the shipped policy was trained without it, and a policy runs with the
+    /// controller it was trained with (with an early form of the adapter on, floor 0.1–0.2,
+    /// the 450 k policy fell in 0 to 6 of the comparison's 30 runs depending on the floor,
+    /// against 1 without; the 700 k policy at floor 0.1 in 4, against 0).
     pub adapt_friction: bool,
 }
 
@@ -221,18 +222,13 @@ pub struct EempRlEnv {
     fell: bool,
 }
 
-impl EempRlEnv {
-    /// Observes (and, for EEMP, controls) through `source` from now on: the policy then
-    /// trains on what the robot senses (`estimator = "kf"` in the training config).
-    pub fn set_state_source(
-        &mut self,
-        source: &eemp_sim::closed_loop::StateSource,
-    ) -> Result<(), String> {
-        self.loop_
-            .set_state_source(source)
-            .map_err(|e| e.to_string())
+impl super::OnClosedLoop for EempRlEnv {
+    fn closed_loop_mut(&mut self) -> &mut ClosedLoop {
+        &mut self.loop_
     }
+}
 
+impl EempRlEnv {
     pub fn new(
         robot: &RobotConfig,
         model: Arc<MjModel>,

@@ -629,18 +629,13 @@ pub fn training_model(
     build_model(&robot, &SceneExtras::default()).map_err(|e| e.to_string())
 }
 
-impl ModelFreeEnv {
-    /// Observes (and, for EEMP, controls) through `source` from now on: the policy then
-    /// trains on what the robot senses (`estimator = "kf"` in the training config).
-    pub fn set_state_source(
-        &mut self,
-        source: &eemp_sim::closed_loop::StateSource,
-    ) -> Result<(), String> {
-        self.loop_
-            .set_state_source(source)
-            .map_err(|e| e.to_string())
+impl super::OnClosedLoop for ModelFreeEnv {
+    fn closed_loop_mut(&mut self) -> &mut ClosedLoop {
+        &mut self.loop_
     }
+}
 
+impl ModelFreeEnv {
     pub fn new(
         robot: &RobotConfig,
         model: Arc<MjModel>,
