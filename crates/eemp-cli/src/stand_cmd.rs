@@ -77,10 +77,7 @@ pub fn run(args: &StandArgs) -> Result<(), String> {
                 args.push_dv
             ));
         }
-        pushes.push(Push {
-            at_s: at,
-            dv_world: Vector3::new(0.0, args.push_dv, 0.0),
-        });
+        pushes.push(Push::step(at, Vector3::new(0.0, args.push_dv, 0.0)));
     }
     if !(args.trace_hz.is_finite() && args.trace_hz > 0.0 && args.trace_hz <= 1000.0) {
         return Err(format!(

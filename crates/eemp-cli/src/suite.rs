@@ -45,6 +45,9 @@ pub struct MethodConfig {
     /// EEMP: lower the MPC's friction coefficient after slips (`eemp_core::slip`).
     #[serde(default)]
     pub adapt_friction: bool,
+    /// On the filter: its velocity-jump threshold, m/s (`KfConfig::velocity_jump_mps`; 0: off).
+    #[serde(default)]
+    pub kf_velocity_jump_mps: f64,
 }
 
 impl MethodConfig {
@@ -176,8 +179,18 @@ impl SuiteConfig {
         }
         crate::state_source_arg::state_source(&self.estimator, false, 0, &RobotConfig::a1())?;
         for m in &self.methods {
-            crate::state_source_arg::state_source(m.estimator(self), false, 0, &RobotConfig::a1())
-                .map_err(|e| format!("method '{}': {e}", m.name))?;
+            let mut source = crate::state_source_arg::state_source(
+                m.estimator(self),
+                false,
+                0,
+                &RobotConfig::a1(),
+            )
+            .map_err(|e| format!("method '{}': {e}", m.name))?;
+            crate::state_source_arg::with_velocity_jump(
+                &mut source,
+                m.kf_velocity_jump_mps,
+                &format!("method '{}': kf_velocity_jump_mps", m.name),
+            )?;
         }
         // Run ids must be unique (resume finds runs by id).
         let mut seeds = self.seeds.clone();
@@ -330,6 +343,11 @@ pub fn simulate(
     spec.seed = run.seed;
     spec.state_source =
         crate::state_source_arg::state_source(m.estimator(cfg), false, run.seed, robot)?;
+    crate::state_source_arg::with_velocity_jump(
+        &mut spec.state_source,
+        m.kf_velocity_jump_mps,
+        &format!("method '{}': kf_velocity_jump_mps", m.name),
+    )?;
     if let Some(p) = sc.load_profile()? {
         spec.profile = p;
     }

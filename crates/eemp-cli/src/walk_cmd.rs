@@ -234,10 +234,8 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
                 args.duration
             ));
         }
-        spec.pushes.push(Push {
-            at_s: at,
-            dv_world: Vector3::new(0.0, args.push_dv, 0.0),
-        });
+        spec.pushes
+            .push(Push::step(at, Vector3::new(0.0, args.push_dv, 0.0)));
     }
     spec.validate().map_err(|e| e.to_string())?;
 
@@ -260,6 +258,10 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
         "vx_mps",
         "vy_mps",
         "vz_mps",
+        "est_vx_mps",
+        "est_vy_mps",
+        "est_vz_mps",
+        "est_z_m",
         "cmd_vx_mps",
         "cmd_vy_mps",
         "cmd_yaw_rate_rps",
@@ -296,6 +298,8 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
         let s = &r.state.body;
         let rpy = s.rpy();
         let v = s.v_heading();
+        // What the controller saw (the truth on ground truth), in the same heading frame.
+        let v_est = r.estimate.body.v_heading();
         let cmd = spec.profile.command_at(r.state.time_s);
         let qd = r.state.joints.map(|_, j| j.qd);
         let mut row = vec![
@@ -309,6 +313,10 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
             v.x,
             v.y,
             v.z,
+            v_est.x,
+            v_est.y,
+            v_est.z,
+            r.estimate.body.p_world.z,
             cmd.vx_mps,
             cmd.vy_mps,
             cmd.yaw_rate_rps,

@@ -23,6 +23,7 @@ fn config() -> SuiteConfig {
                 policy: None,
                 estimator: None,
                 adapt_friction: false,
+                kf_velocity_jump_mps: 0.0,
             },
             MethodConfig {
                 name: "model-free RL".into(),
@@ -32,6 +33,7 @@ fn config() -> SuiteConfig {
                 policy: Some(repo("policies/a1_model_free.safetensors")),
                 estimator: None,
                 adapt_friction: false,
+                kf_velocity_jump_mps: 0.0,
             },
         ],
         scenarios: vec![
@@ -133,6 +135,17 @@ fn bad_suite_configs_are_refused_naming_the_value() {
     c.scenarios[0].speeds_mps.clear();
     c.scenarios[0].profile = Some(repo("profiles/nope.toml"));
     assert!(c.validate().unwrap_err().contains("nope.toml"));
+    let mut c = config();
+    c.methods[0].kf_velocity_jump_mps = -0.1;
+    let e = c.validate().unwrap_err();
+    assert!(
+        e.contains("kf_velocity_jump_mps") && e.contains("-0.1"),
+        "{e}"
+    );
+    let mut c = config();
+    c.methods[0].estimator = Some("ground-truth".into());
+    c.methods[0].kf_velocity_jump_mps = 0.15;
+    assert!(c.validate().unwrap_err().contains("needs the kf estimator"));
 }
 
 #[test]

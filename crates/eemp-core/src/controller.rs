@@ -99,7 +99,6 @@ pub struct LocomotionController {
     last_solve_time_s: Option<f64>,
     last_stance: LegMap<bool>,
     friction: FrictionAdapter,
-    foot_radius_m: f64,
 }
 
 impl LocomotionController {
@@ -113,7 +112,6 @@ impl LocomotionController {
             forces_world: LegMap::splat(Vector3::zeros()),
             last_solve_time_s: None,
             last_stance: LegMap::splat(false),
-            foot_radius_m: robot.leg.foot_radius_m,
             friction: FrictionAdapter::new(config.slip.clone(), config.mpc.friction_coefficient)?,
             config,
         })
@@ -252,9 +250,10 @@ impl LocomotionController {
             let p = r * self.kinematics.foot_position_body(leg, &j.q);
             let v_rel = r * (self.kinematics.foot_jacobian_body(leg, &j.q) * j.qd);
             let v_centre = body.v_world + body.omega_world.cross(&p) + v_rel;
-            let w_calf =
-                body.omega_world + r * self.kinematics.calf_angular_velocity_body(&j.q, &j.qd);
-            v_centre + w_calf.cross(&Vector3::new(0.0, 0.0, -self.foot_radius_m))
+            v_centre
+                - self
+                    .kinematics
+                    .foot_rolling_velocity_world(&j.q, &j.qd, &r, &body.omega_world)
         })
     }
 }

@@ -5,7 +5,7 @@
 
 use crate::leg::{Leg, LegMap};
 use crate::robot::{LinkKind, RobotConfig};
-use nalgebra::{Matrix3, Rotation3, Vector3};
+use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
 
 /// Origins and orientations (in the body frame) of one leg's three link frames.
 #[derive(Clone, Copy, Debug)]
@@ -39,6 +39,7 @@ pub struct LegKinematics {
     abduction_to_thigh_m: f64,
     thigh_length_m: f64,
     calf_length_m: f64,
+    foot_radius_m: f64,
     joint_range_rad: [[f64; 2]; 3],
 }
 
@@ -56,6 +57,7 @@ impl LegKinematics {
             abduction_to_thigh_m: l.abduction_to_thigh_m,
             thigh_length_m: l.thigh_length_m,
             calf_length_m: l.calf_length_m,
+            foot_radius_m: l.foot_radius_m,
             joint_range_rad: [l.abduction_range_rad, l.thigh_range_rad, l.calf_range_rad],
         }
     }
@@ -109,6 +111,21 @@ impl LegKinematics {
     pub fn calf_angular_velocity_body(&self, q: &Vector3<f64>, qd: &Vector3<f64>) -> Vector3<f64> {
         let (s0, c0) = q[0].sin_cos();
         Vector3::new(qd[0], 0.0, 0.0) + Vector3::new(0.0, c0, s0) * (qd[1] + qd[2])
+    }
+
+    /// Velocity of a foot sphere's centre when the foot rolls on flat ground without sliding,
+    /// world frame, m/s: the calf's absolute angular velocity × r ẑ (the centre sits r above
+    /// the contact point). The sphere is fixed to the calf, so a stance foot's centre moves by
+    /// this much as the leg sweeps under the trunk (≈ 1 rad/s × 0.02 m in a trot).
+    pub fn foot_rolling_velocity_world(
+        &self,
+        q: &Vector3<f64>,
+        qd: &Vector3<f64>,
+        r_world_body: &UnitQuaternion<f64>,
+        omega_world: &Vector3<f64>,
+    ) -> Vector3<f64> {
+        let w_calf = omega_world + r_world_body * self.calf_angular_velocity_body(q, qd);
+        w_calf.cross(&Vector3::new(0.0, 0.0, self.foot_radius_m))
     }
 
     /// Inverse kinematics (knee-backward branch, calf angle < 0) for a foot target in the body

@@ -12,13 +12,30 @@ use eemp_core::planner::VelocityCommand;
 use nalgebra::Vector3;
 use std::time::Instant;
 
-/// A push: the trunk's velocity changes by `dv_world` at time `at_s` (an impulse on the whole
-/// robot, since the legs move with the trunk). Stated as a velocity change so it means the same
-/// on any robot mass.
+/// A push of the robot's momentum by `mass × dv_world` at time `at_s`. Stated as a velocity
+/// change so it means the same on any robot mass.
+///
+/// With `duration_s` 0 the robot's velocity steps between two physics steps (the legs move with
+/// the trunk, as legged_gym's `push_robots` does): no onboard sensor can sense such a step
+/// until the sliding feet stop, so an estimator must lag it. With `duration_s` > 0 it is a force
+/// of `mass × dv / duration_s` on the trunk's centre of mass over that time — what a hand or a
+/// collision does — which the accelerometer senses and the feet resist.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Push {
     pub at_s: f64,
     pub dv_world: Vector3<f64>,
+    pub duration_s: f64,
+}
+
+impl Push {
+    /// A velocity step (duration 0).
+    pub fn step(at_s: f64, dv_world: Vector3<f64>) -> Self {
+        Push {
+            at_s,
+            dv_world,
+            duration_s: 0.0,
+        }
+    }
 }
 
 /// When a run counts as fallen.
@@ -193,6 +210,8 @@ pub fn percentile(values: &[f64], p: f64) -> f64 {
 pub struct ClosedLoop {
     sim: Simulation,
     pending: Vec<Push>,
+    /// Force pulses under way (they end at `at_s + duration_s`).
+    pulses: Vec<Push>,
     limits: FallLimits,
     stats: LoopStats,
     t_start: f64,
@@ -225,6 +244,7 @@ impl ClosedLoop {
             last_torques: LegMap::splat(Vector3::zeros()),
             sim,
             pending: pushes.to_vec(),
+            pulses: Vec::new(),
             limits,
             stats: LoopStats::default(),
             t_start,
@@ -283,6 +303,10 @@ impl ClosedLoop {
     /// Starts a new episode on the same simulation (the caller has reset its state).
     pub fn restart(&mut self, pushes: &[Push]) {
         self.pending = pushes.to_vec();
+        if !self.pulses.is_empty() {
+            self.pulses.clear();
+            self.sim.set_trunk_force(Vector3::zeros());
+        }
         self.stats = LoopStats::default();
         self.t_start = self.sim.time_s();
         self.wall_start = Instant::now();
@@ -404,17 +428,29 @@ impl ClosedLoop {
         self.loaded = sim.foot_normal_forces_n().map(|_, f| *f > LOADED_FOOT_N);
         // Pushes take effect between steps.
         let t_start = self.t_start;
+        let pulses = &mut self.pulses;
         self.pending.retain(|p| {
-            if sim.time_s() - t_start >= p.at_s {
+            if sim.time_s() - t_start < p.at_s {
+                return true;
+            }
+            if p.duration_s > 0.0 {
+                pulses.push(*p);
+            } else {
                 let qvel = sim.data_mut().qvel_mut();
                 for (v, dv) in qvel[..3].iter_mut().zip(p.dv_world.iter()) {
                     *v += dv;
                 }
-                false
-            } else {
-                true
             }
+            false
         });
+        if !pulses.is_empty() {
+            let t = sim.time_s() - t_start;
+            // A pulse of n steps covers n physics steps exactly (rounded), whatever the phase.
+            pulses.retain(|p| t < p.at_s + p.duration_s - 0.5 * sim.timestep_s());
+            let m = sim.total_mass_kg();
+            let force: Vector3<f64> = pulses.iter().map(|p| p.dv_world * (m / p.duration_s)).sum();
+            sim.set_trunk_force(force);
+        }
         let t5 = Instant::now();
         let stats = &mut self.stats;
         let planning = controller.last_planning_time_s();

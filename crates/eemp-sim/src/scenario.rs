@@ -17,9 +17,13 @@ use serde::{Deserialize, Serialize};
 pub struct PushSpec {
     pub at_s: f64,
     pub dv_mps: [f64; 3],
+    /// 0: a step of the velocity; > 0: a force pulse this long, s (see [`Push`]).
+    #[serde(default)]
+    pub duration_s: f64,
 }
 
-/// Pushes of the same size every `every_s` from `first_s` on, alternating left and right.
+/// Pushes of the same size every `every_s` from `first_s` on, alternating left and right, each
+/// late by a random `[0, jitter_s)` drawn from the run's seed.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PushSchedule {
@@ -27,6 +31,14 @@ pub struct PushSchedule {
     pub every_s: f64,
     /// Size of the lateral velocity change, m/s.
     pub dv_mps: f64,
+    /// 0: a step of the velocity; > 0: a force pulse this long, s (see [`Push`]).
+    #[serde(default)]
+    pub duration_s: f64,
+    /// Each push comes up to this much later than its slot, s, uniformly at random from the
+    /// run's seed: on a periodic gait, fixed times would hit every run's gait in the same few
+    /// phases, and a push's effect depends strongly on the phase it meets.
+    #[serde(default)]
+    pub jitter_s: f64,
 }
 
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -62,11 +74,24 @@ impl Scenario {
             for (k, v) in p.dv_mps.iter().enumerate() {
                 check_range(&format!("push[{i}].dv_mps[{k}]"), *v, -3.0, 3.0)?;
             }
+            check_range(&format!("push[{i}].duration_s"), p.duration_s, 0.0, 1.0)?;
         }
         if let Some(s) = &self.push_schedule {
             check_range("push_schedule.first_s", s.first_s, 0.0, 3600.0)?;
             check_range("push_schedule.every_s", s.every_s, 0.2, 3600.0)?;
             check_range("push_schedule.dv_mps", s.dv_mps, 0.0, 3.0)?;
+            check_range("push_schedule.duration_s", s.duration_s, 0.0, 1.0)?;
+            check_range("push_schedule.jitter_s", s.jitter_s, 0.0, 3600.0)?;
+            if s.duration_s + s.jitter_s >= s.every_s {
+                return Err(ConfigError::Invalid {
+                    name: "push_schedule".into(),
+                    message: format!(
+                        "duration_s {} + jitter_s {} must be shorter than every_s {} (pushes \
+                         would overlap)",
+                        s.duration_s, s.jitter_s, s.every_s
+                    ),
+                });
+            }
         }
         check_range("payload_kg", self.payload_kg, 0.0, 10.0)?;
         self.model_error.validate()?;
@@ -86,23 +111,35 @@ impl Scenario {
         Ok(s)
     }
 
-    /// Every push of a run of `duration_s`.
-    pub fn pushes(&self, duration_s: f64) -> Vec<Push> {
+    /// Every push of a run of `duration_s` whose seed is `seed`.
+    pub fn pushes(&self, duration_s: f64, seed: u64) -> Vec<Push> {
         let mut out: Vec<Push> = self
             .push
             .iter()
             .map(|p| Push {
                 at_s: p.at_s,
                 dv_world: Vector3::from(p.dv_mps),
+                duration_s: p.duration_s,
             })
             .collect();
         if let Some(s) = &self.push_schedule {
+            use rand::{Rng, SeedableRng};
+            // Its own stream: the start perturbation and the sensor noise use the seed too.
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ 0x9e37_79b9_7f4a_7c15);
             let mut t = s.first_s;
             let mut side = 1.0;
             while t < duration_s {
+                let late = match s.jitter_s > 0.0 {
+                    true => rng.random_range(0.0..s.jitter_s),
+                    false => 0.0,
+                };
+                if t + late >= duration_s {
+                    break;
+                }
                 out.push(Push {
-                    at_s: t,
+                    at_s: t + late,
                     dv_world: Vector3::new(0.0, side * s.dv_mps, 0.0),
+                    duration_s: s.duration_s,
                 });
                 side = -side;
                 t += s.every_s;
@@ -132,7 +169,7 @@ impl Scenario {
         if self.floor_friction.is_some() {
             spec.floor_friction = self.floor_friction;
         }
-        spec.pushes.extend(self.pushes(spec.duration_s));
+        spec.pushes.extend(self.pushes(spec.duration_s, spec.seed));
         spec.payload_kg = self.payload_kg;
         spec.model_error = self.model_error;
     }
@@ -149,13 +186,45 @@ mod tests {
                 first_s: 2.0,
                 every_s: 4.0,
                 dv_mps: 0.5,
+                duration_s: 0.0,
+                jitter_s: 0.0,
             }),
             ..Default::default()
         };
-        let p = s.pushes(12.0);
+        let p = s.pushes(12.0, 1);
         assert_eq!(p.len(), 3);
         assert_eq!(p[1].at_s, 6.0);
         assert_eq!(p[0].dv_world.y, 0.5);
         assert_eq!(p[1].dv_world.y, -0.5);
+    }
+
+    #[test]
+    fn a_jittered_schedule_is_late_by_less_than_the_jitter_and_repeats_with_its_seed() {
+        let mut s = Scenario {
+            push_schedule: Some(PushSchedule {
+                first_s: 3.0,
+                every_s: 4.0,
+                dv_mps: 0.5,
+                duration_s: 0.1,
+                jitter_s: 0.5,
+            }),
+            ..Default::default()
+        };
+        s.validate().unwrap();
+        let a = s.pushes(20.0, 1);
+        assert_eq!(a.len(), 5);
+        for (k, p) in a.iter().enumerate() {
+            let slot = 3.0 + 4.0 * k as f64;
+            assert!(p.at_s >= slot && p.at_s < slot + 0.5, "{k}: {}", p.at_s);
+            assert_eq!(p.duration_s, 0.1);
+            assert_eq!(p.dv_world.y, if k % 2 == 0 { 0.5 } else { -0.5 });
+        }
+        assert_eq!(a, s.pushes(20.0, 1));
+        let b = s.pushes(20.0, 2);
+        assert!(a.iter().zip(&b).all(|(x, y)| x.at_s != y.at_s));
+        // Pushes that would overlap the next slot are refused, naming the keys.
+        s.push_schedule.as_mut().unwrap().jitter_s = 3.95;
+        let e = s.validate().unwrap_err().to_string();
+        assert!(e.contains("jitter_s") && e.contains("every_s"), "{e}");
     }
 }

@@ -50,10 +50,7 @@ fn absorbs_a_lateral_push_of_0_3_m_per_s() {
     let robot = RobotConfig::a1();
     let mut profile = BodyMotionProfile::default();
     profile.segments.clear();
-    let push = Push {
-        at_s: 3.0,
-        dv_world: Vector3::new(0.0, 0.3, 0.0),
-    };
+    let push = Push::step(3.0, Vector3::new(0.0, 0.3, 0.0));
     let mut max_dev: f64 = 0.0;
     let run = run_stand(
         &robot,
@@ -71,4 +68,46 @@ fn absorbs_a_lateral_push_of_0_3_m_per_s() {
     .unwrap();
     println!("max deviation after push {max_dev} m");
     assert!(!run.stats.fell, "fell at {:?}", run.stats.fell_at_s);
+}
+
+/// A push as a force pulse: the trunk gains its velocity over the pulse (not at once, as a
+/// step gives it), about the impulse's worth, and the robot stands through it.
+#[test]
+fn a_push_as_a_force_pulse_builds_up_over_its_duration() {
+    let robot = RobotConfig::a1();
+    let mut profile = BodyMotionProfile::default();
+    profile.segments.clear();
+    let lateral_at = |push: Push, t_s: f64| {
+        let mut vy = f64::NAN;
+        let run = run_stand(
+            &robot,
+            ControllerConfig::default(),
+            profile.clone(),
+            5.0,
+            &[push],
+            |r| {
+                if (r.state.time_s - t_s).abs() < 0.5e-3 {
+                    vy = r.state.body.v_world.y;
+                }
+            },
+        )
+        .unwrap();
+        assert!(!run.stats.fell, "fell at {:?}", run.stats.fell_at_s);
+        vy
+    };
+    let dv = Vector3::new(0.0, 0.3, 0.0);
+    let pulse = Push {
+        at_s: 3.0,
+        dv_world: dv,
+        duration_s: 0.05,
+    };
+    // 2 ms in: a step has (almost) all of it, the pulse a few percent.
+    let step_early = lateral_at(Push::step(3.0, dv), 3.002);
+    let pulse_early = lateral_at(pulse, 3.002);
+    let pulse_end = lateral_at(pulse, 3.05);
+    println!("step {step_early}, pulse {pulse_early} then {pulse_end} m/s");
+    assert!(step_early > 0.25, "{step_early}");
+    assert!(pulse_early.abs() < 0.05, "{pulse_early}");
+    // The feet and the controller resist it, so less than the full 0.3 m/s but most of it.
+    assert!(pulse_end > 0.15 && pulse_end < 0.32, "{pulse_end}");
 }
