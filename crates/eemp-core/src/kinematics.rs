@@ -296,4 +296,30 @@ mod tests {
             Err(IkError::Unreachable { .. })
         ));
     }
+
+    #[test]
+    fn a_rolling_foot_moves_its_centre_by_the_calf_rate_times_the_radius() {
+        // Hand values: thigh + calf turning at 1.5 rad/s about y (abduction 0), level trunk at
+        // rest: the centre of a 0.02 m sphere rolls at (0.03, 0, 0) m/s. A trunk yawing adds
+        // ω × r ẑ = 0 (parallel); rolling about x at 2 rad/s adds (0, −0.04, 0).
+        let k = LegKinematics::new(&RobotConfig::a1());
+        let r = RobotConfig::a1().leg.foot_radius_m;
+        assert_eq!(r, 0.02);
+        let q = Vector3::new(0.0, 0.8, -1.6);
+        let level = UnitQuaternion::identity();
+        let v = k.foot_rolling_velocity_world(
+            &q,
+            &Vector3::new(0.0, 2.0, -0.5),
+            &level,
+            &Vector3::zeros(),
+        );
+        assert!((v - Vector3::new(0.03, 0.0, 0.0)).norm() < 1e-12, "{v:?}");
+        let v = k.foot_rolling_velocity_world(
+            &q,
+            &Vector3::zeros(),
+            &level,
+            &Vector3::new(2.0, 0.0, 1.0),
+        );
+        assert!((v - Vector3::new(0.0, -0.04, 0.0)).norm() < 1e-12, "{v:?}");
+    }
 }
