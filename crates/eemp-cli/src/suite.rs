@@ -86,16 +86,17 @@ impl ScenarioConfig {
             .transpose()
     }
 
-    /// The speeds its runs are listed at: `speeds_mps`, or a profile's top forward speed.
-    pub fn speeds(&self) -> Vec<f64> {
-        match self.load_profile() {
-            Ok(Some(p)) => vec![p
+    /// The speeds its runs are listed at: `speeds_mps`, or a profile's top forward speed (an
+    /// unreadable profile is an error, naming the file).
+    pub fn speeds(&self) -> Result<Vec<f64>, String> {
+        Ok(match self.load_profile()? {
+            Some(p) => vec![p
                 .segments
                 .iter()
                 .map(|s| s.vx_mps.abs())
                 .fold(0.0, f64::max)],
-            _ => self.speeds_mps.clone(),
-        }
+            None => self.speeds_mps.clone(),
+        })
     }
 }
 
@@ -292,10 +293,10 @@ impl SuiteConfig {
         Ok(())
     }
 
-    pub fn runs(&self) -> Vec<SuiteRun> {
+    pub fn runs(&self) -> Result<Vec<SuiteRun>, String> {
         let mut runs = Vec::new();
         for (si, s) in self.scenarios.iter().enumerate() {
-            for v in s.speeds() {
+            for v in s.speeds()? {
                 for mi in 0..self.methods.len() {
                     for &seed in &self.seeds {
                         runs.push(SuiteRun {
@@ -308,7 +309,7 @@ impl SuiteConfig {
                 }
             }
         }
-        runs
+        Ok(runs)
     }
 
     pub fn run_id(&self, r: &SuiteRun) -> String {
@@ -469,12 +470,12 @@ pub fn run_suite(
     }
     eemp_study::store::write_atomic(&path, &body).map_err(|e| e.to_string())?;
     let done: std::collections::BTreeSet<String> = rows.iter().map(|r| r.run_id.clone()).collect();
-    let todo: Vec<SuiteRun> = cfg
-        .runs()
+    let all = cfg.runs()?;
+    let total = all.len();
+    let todo: Vec<SuiteRun> = all
         .into_iter()
         .filter(|r| !done.contains(&cfg.run_id(r)))
         .collect();
-    let total = cfg.runs().len();
     let file = Mutex::new(
         std::fs::OpenOptions::new()
             .append(true)

@@ -97,7 +97,7 @@ fn run(args: &SuiteArgs, default: &str) -> Result<(SuiteConfig, Vec<SuiteRow>), 
         .clone()
         .unwrap_or_else(|| PathBuf::from(default));
     let cfg = SuiteConfig::load(&path)?;
-    let total = cfg.runs().len();
+    let total = cfg.runs()?.len();
     let bar = ProgressBar::new(total as u64);
     bar.set_style(
         ProgressStyle::with_template("{bar:40} {pos}/{len} runs, {elapsed} elapsed, eta {eta}")
@@ -245,7 +245,7 @@ pub fn compare(args: &SuiteArgs) -> Result<(), String> {
     let (cfg, rows) = run(args, "suites/compare.toml")?;
     let cells = aggregate(&rows);
     let scen = cfg.scenarios[0].name.clone();
-    let speeds: Vec<f64> = cfg.scenarios[0].speeds();
+    let speeds: Vec<f64> = cfg.scenarios[0].speeds()?;
     let key = |m: &str, v: f64| (m.to_string(), scen.clone(), (v * 1000.0).round() as i64);
     // Fig. 7: three panels against speed, one line per method, min–max over seeds shaded.
     let metric = |name: &str, unit: &str, f: fn(&Cell) -> &Stat| {
@@ -479,22 +479,18 @@ pub fn robustness(args: &SuiteArgs) -> Result<(), String> {
     let methods: Vec<String> = cfg.methods.iter().map(|m| m.name.clone()).collect();
     // One category per scenario and speed.
     let mut cats: Vec<(String, f64)> = Vec::new();
+    let mut speed_count = std::collections::HashMap::new();
     for s in &cfg.scenarios {
-        for v in s.speeds() {
+        let speeds = s.speeds()?;
+        speed_count.insert(s.name.clone(), speeds.len());
+        for v in speeds {
             cats.push((s.name.clone(), v));
         }
     }
     let names: Vec<String> = cats
         .iter()
         .map(|(s, v)| {
-            if cfg
-                .scenarios
-                .iter()
-                .find(|x| &x.name == s)
-                .map(|x| x.speeds().len())
-                .unwrap_or(1)
-                > 1
-            {
+            if speed_count.get(s).copied().unwrap_or(1) > 1 {
                 format!("{s} {v}")
             } else {
                 s.clone()

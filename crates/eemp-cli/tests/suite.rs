@@ -165,7 +165,7 @@ fn a_method_can_run_on_its_own_estimator_and_a_scenario_on_a_profile() {
     }];
     c.validate().unwrap();
     // One run per method and seed, listed at the profile's top speed (1.0 m/s).
-    let runs = c.runs();
+    let runs = c.runs().unwrap();
     assert_eq!(runs.len(), 2);
     assert!(runs.iter().all(|r| (r.speed_mps - 1.0).abs() < 1e-12));
     let dir = tempfile::tempdir().unwrap();

@@ -7,7 +7,7 @@ use eemp_rl::env::{env_seed, VecEnv};
 use eemp_rl::nn::ActorCritic;
 use eemp_rl::policy::Policy;
 use eemp_rl::ppo::{ppo_loss, Minibatch};
-use eemp_rl::tasks::model_free::{training_model, ModelFreeEnv};
+use eemp_rl::tasks::model_free::{training_model, ModelFreeConfig, ModelFreeEnv, TrainPushes};
 use eemp_rl::train::{train, IterationLog, TrainOptions};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -155,8 +155,9 @@ fn a_finished_run_extended_to_more_steps_equals_the_longer_run() {
 
 #[test]
 fn a_resumed_model_free_run_equals_an_uninterrupted_one() {
-    // A smoke training of the A1 task (seconds): MuJoCo state, warm starts, normaliser and
-    // every RNG must survive the checkpoint.
+    // A smoke training of the A1 task (seconds): MuJoCo state, warm starts, normaliser, every
+    // RNG and the pushes still to come in each episode must survive the checkpoint (pushes
+    // every 0.5 s: the checkpoint at 0.64 s falls between two).
     let dir = tempfile::tempdir().unwrap();
     let config = TrainConfig {
         num_envs: 4,
@@ -167,6 +168,13 @@ fn a_resumed_model_free_run_equals_an_uninterrupted_one() {
             actor_hidden: vec![16],
             critic_hidden: vec![16],
             activation: Activation::Elu,
+        },
+        model_free: ModelFreeConfig {
+            pushes: TrainPushes {
+                every_s: 0.5,
+                max_dv_mps: 0.5,
+            },
+            ..Default::default()
         },
         ..Default::default()
     };

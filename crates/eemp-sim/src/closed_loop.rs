@@ -322,6 +322,19 @@ impl ClosedLoop {
         }
     }
 
+    /// The episode's pushes still to come, their times counted from now (what a snapshot of an
+    /// episode keeps; force pulses under way are not included).
+    pub fn pending_pushes(&self) -> Vec<Push> {
+        let elapsed = self.elapsed_s();
+        self.pending
+            .iter()
+            .map(|p| Push {
+                at_s: p.at_s - elapsed,
+                ..*p
+            })
+            .collect()
+    }
+
     /// Feet carrying more than [`LOADED_FOOT_N`] after the last step.
     pub fn loaded(&self) -> LegMap<bool> {
         self.loaded

@@ -17,7 +17,7 @@ use eemp_core::leg::{Leg, LegMap};
 use eemp_core::planner::VelocityCommand;
 use eemp_core::robot::RobotConfig;
 use eemp_sim::backend::{build_model, SimSnapshot};
-use eemp_sim::closed_loop::{ClosedLoop, FallLimits};
+use eemp_sim::closed_loop::{ClosedLoop, FallLimits, Push};
 use eemp_sim::mjcf::SceneExtras;
 use eemp_sim::walk::StartPose;
 use eemp_sim::Simulation;
@@ -166,6 +166,46 @@ impl Default for CommandRanges {
     }
 }
 
+/// Random pushes in training (legged_gym's `push_robots`): every `every_s` (each up to half of
+/// it late, at random) the trunk's horizontal velocity steps by a uniform draw in ±`max_dv_mps`
+/// per axis, as `eemp_sim::closed_loop::Push::step` does in the robustness suite. `every_s` 0:
+/// no pushes (the default, as the shipped policy was trained).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TrainPushes {
+    pub every_s: f64,
+    pub max_dv_mps: f64,
+}
+
+impl TrainPushes {
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        if self.every_s != 0.0 {
+            check_range("model_free.pushes.every_s", self.every_s, 0.5, 3600.0)?;
+        }
+        check_range("model_free.pushes.max_dv_mps", self.max_dv_mps, 0.0, 2.0)
+    }
+
+    /// The pushes of an episode of `episode_s`, drawn from `rng` (none when off).
+    pub fn draw(&self, episode_s: f64, rng: &mut ChaCha8Rng) -> Vec<Push> {
+        let mut out = Vec::new();
+        if self.every_s <= 0.0 {
+            return out;
+        }
+        let m = self.max_dv_mps;
+        let mut slot = self.every_s;
+        while slot < episode_s {
+            let at_s = slot + rng.random_range(0.0..0.5 * self.every_s);
+            let dv = match m > 0.0 {
+                true => Vector3::new(rng.random_range(-m..m), rng.random_range(-m..m), 0.0),
+                false => Vector3::zeros(),
+            };
+            out.push(Push::step(at_s, dv));
+            slot += self.every_s;
+        }
+        out
+    }
+}
+
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ModelFreeConfig {
@@ -196,6 +236,7 @@ pub struct ModelFreeConfig {
     /// Reset noise: joint angles ± this, rad; trunk velocity ± reset_vel_noise_mps.
     pub reset_joint_noise_rad: f64,
     pub reset_vel_noise_mps: f64,
+    pub pushes: TrainPushes,
 }
 
 impl Default for ModelFreeConfig {
@@ -217,6 +258,7 @@ impl Default for ModelFreeConfig {
             only_positive_rewards: true,
             reset_joint_noise_rad: 0.1,
             reset_vel_noise_mps: 0.1,
+            pushes: TrainPushes::default(),
         }
     }
 }
@@ -293,7 +335,8 @@ impl ModelFreeConfig {
             self.reset_vel_noise_mps,
             0.0,
             1.0,
-        )
+        )?;
+        self.pushes.validate()
     }
 
     pub fn obs_dim(&self) -> usize {
@@ -590,6 +633,9 @@ pub(crate) fn run_period(
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ModelFreeSnapshot {
     pub sim: SimSnapshot,
+    /// The episode's pushes still to come: (seconds from now, Δv world).
+    #[serde(default)]
+    pub pushes: Vec<(f64, [f64; 3])>,
     pub memory: PolicyMemory,
     pub command: VelocityCommand,
     pub steps: usize,
@@ -717,6 +763,12 @@ impl ModelFreeEnv {
     pub fn snapshot(&self) -> ModelFreeSnapshot {
         ModelFreeSnapshot {
             sim: self.loop_.sim().snapshot(),
+            pushes: self
+                .loop_
+                .pending_pushes()
+                .iter()
+                .map(|p| (p.at_s, p.dv_world.into()))
+                .collect(),
             memory: self.memory.clone(),
             command: self.command,
             steps: self.steps,
@@ -732,7 +784,12 @@ impl ModelFreeEnv {
             .sim_mut()
             .restore(&s.sim)
             .map_err(|e| e.to_string())?;
-        self.loop_.restart(&[]);
+        let pushes: Vec<Push> = s
+            .pushes
+            .iter()
+            .map(|(at_s, dv)| Push::step(*at_s, Vector3::from(*dv)))
+            .collect();
+        self.loop_.restart(&pushes);
         self.memory = s.memory.clone();
         self.command = s.command;
         self.steps = s.steps;
@@ -787,7 +844,8 @@ impl Env for ModelFreeEnv {
             data.qvel_mut()[1] = rng.random_range(-vn..vn);
             data.forward();
         }
-        self.loop_.restart(&[]);
+        let pushes = self.config.pushes.draw(self.config.episode_s, rng);
+        self.loop_.restart(&pushes);
         self.sample_command(rng);
         let state = self.loop_.sim().ground_truth_state();
         self.memory.start(&state, &self.q0);
@@ -916,5 +974,41 @@ impl Env for ModelFreeEnv {
         let snap: ModelFreeSnapshot =
             serde_json::from_value(s.clone()).map_err(|e| format!("model-free env state: {e}"))?;
         self.restore(&snap)
+    }
+}
+
+#[cfg(test)]
+mod push_tests {
+    use super::*;
+    use rand::SeedableRng;
+
+    #[test]
+    fn training_pushes_come_once_per_slot_within_their_bounds_and_repeat_with_the_seed() {
+        let p = TrainPushes {
+            every_s: 4.0,
+            max_dv_mps: 0.6,
+        };
+        p.validate().unwrap();
+        let draw = |seed| p.draw(20.0, &mut ChaCha8Rng::seed_from_u64(seed));
+        let a = draw(3);
+        assert_eq!(a.len(), 4); // slots at 4, 8, 12, 16 s
+        for (k, push) in a.iter().enumerate() {
+            let slot = 4.0 * (k + 1) as f64;
+            assert!(push.at_s >= slot && push.at_s < slot + 2.0, "{}", push.at_s);
+            assert!(push.dv_world.x.abs() <= 0.6 && push.dv_world.y.abs() <= 0.6);
+            assert_eq!(push.dv_world.z, 0.0);
+            assert_eq!(push.duration_s, 0.0);
+        }
+        assert_eq!(a, draw(3));
+        assert_ne!(a, draw(4));
+        // Off: no pushes, and the RNG is not touched (runs without pushes are unchanged).
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        assert!(TrainPushes::default().draw(20.0, &mut rng).is_empty());
+        assert_eq!(rng, ChaCha8Rng::seed_from_u64(3));
+        let bad = TrainPushes {
+            every_s: 0.1,
+            max_dv_mps: 0.6,
+        };
+        assert!(bad.validate().unwrap_err().to_string().contains("every_s"));
     }
 }
