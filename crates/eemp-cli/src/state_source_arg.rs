@@ -41,9 +41,13 @@ pub fn with_velocity_jump(
     jump_mps: f64,
     name: &str,
 ) -> Result<(), String> {
-    eemp_core::config_error::check_range(name, jump_mps, 0.0, 10.0).map_err(|e| e.to_string())?;
     match source {
-        StateSource::Kf { kf, .. } => kf.velocity_jump_mps = jump_mps,
+        StateSource::Kf { kf, .. } => {
+            kf.velocity_jump_mps = jump_mps;
+            // The filter's own range, reported under the option's name.
+            kf.validate()
+                .map_err(|e| format!("{name} {jump_mps}: {e}"))?;
+        }
         StateSource::GroundTruth if jump_mps != 0.0 => {
             return Err(format!("{name} {jump_mps} needs the kf estimator"))
         }

@@ -68,7 +68,7 @@ pub struct WalkArgs {
     /// Scenario file (scenarios/*.toml): `[terrain.rough]` amplitude_m/wavelength_m/seed/size_m,
     /// `[terrain.ramp]` start_x_m/grade/rise_m/plateau_m, `[terrain.step]` at_x_m/height_m,
     /// `[[terrain.friction_patch]]` x0_m/x1_m/width_m/friction, floor_friction, `[[push]]`
-    /// at_s/dv_mps, `[push_schedule]` first_s/every_s/dv_mps, payload_kg, `[model_error]`
+    /// at_s/dv_mps/duration_s, `[push_schedule]` first_s/every_s/dv_mps/duration_s/jitter_s (duration 0: a velocity step, else a force pulse), payload_kg, `[model_error]`
     /// trunk_mass_scale/trunk_inertia_scale/motor_strength_scale, `[sensors]` (noise for
     /// --estimator kf). Applied on top of the other options.
     #[arg(long)]
@@ -298,7 +298,8 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
         let s = &r.state.body;
         let rpy = s.rpy();
         let v = s.v_heading();
-        // What the controller saw (the truth on ground truth), in the same heading frame.
+        // What the controller saw (the truth on ground truth), in its own heading frame (its
+        // yaw estimate; the truth's columns use the true yaw).
         let v_est = r.estimate.body.v_heading();
         let cmd = spec.profile.command_at(r.state.time_s);
         let qd = r.state.joints.map(|_, j| j.qd);

@@ -249,6 +249,8 @@ impl LocomotionController {
             let j = &state.joints[leg];
             let p = r * self.kinematics.foot_position_body(leg, &j.q);
             let v_rel = r * (self.kinematics.foot_jacobian_body(leg, &j.q) * j.qd);
+            // Written out (not `foot_velocity_relative_world`) to keep the sums' order, and so
+            // every earlier result, bit for bit.
             let v_centre = body.v_world + body.omega_world.cross(&p) + v_rel;
             v_centre
                 - self

@@ -113,6 +113,21 @@ impl LegKinematics {
         Vector3::new(qd[0], 0.0, 0.0) + Vector3::new(0.0, c0, s0) * (qd[1] + qd[2])
     }
 
+    /// Velocity of a foot's sphere centre relative to the trunk's origin, world frame, m/s:
+    /// ω × R p_foot_body + R J q̇ (add the trunk's velocity for the foot's own; negate it for
+    /// the trunk's velocity over a planted foot).
+    pub fn foot_velocity_relative_world(
+        &self,
+        leg: Leg,
+        q: &Vector3<f64>,
+        qd: &Vector3<f64>,
+        r_world_body: &UnitQuaternion<f64>,
+        omega_world: &Vector3<f64>,
+    ) -> Vector3<f64> {
+        omega_world.cross(&(r_world_body * self.foot_position_body(leg, q)))
+            + r_world_body * (self.foot_jacobian_body(leg, q) * qd)
+    }
+
     /// Velocity of a foot sphere's centre when the foot rolls on flat ground without sliding,
     /// world frame, m/s: the calf's absolute angular velocity × r ẑ (the centre sits r above
     /// the contact point). The sphere is fixed to the calf, so a stance foot's centre moves by
@@ -321,5 +336,21 @@ mod tests {
             &Vector3::new(2.0, 0.0, 1.0),
         );
         assert!((v - Vector3::new(0.0, -0.04, 0.0)).norm() < 1e-12, "{v:?}");
+    }
+
+    #[test]
+    fn foot_velocity_relative_world_is_the_derivative_of_the_foot_position() {
+        let k = LegKinematics::new(&RobotConfig::a1());
+        let (q, qd) = (Vector3::new(0.1, 0.8, -1.5), Vector3::new(0.7, -1.2, 2.0));
+        let r = UnitQuaternion::from_euler_angles(0.1, -0.2, 0.7);
+        let w = Vector3::new(0.4, -0.3, 0.9);
+        let h = 1e-6;
+        let at = |t: f64| {
+            let r_t = UnitQuaternion::from_scaled_axis(w * t) * r;
+            r_t * k.foot_position_body(Leg::RearLeft, &(q + qd * t))
+        };
+        let numeric = (at(h) - at(-h)) / (2.0 * h);
+        let v = k.foot_velocity_relative_world(Leg::RearLeft, &q, &qd, &r, &w);
+        assert!((v - numeric).norm() < 1e-7, "{v:?} vs {numeric:?}");
     }
 }

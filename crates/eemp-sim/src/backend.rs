@@ -469,6 +469,12 @@ impl Simulation {
         self.data.xfrc_applied_mut()[b] = [f_world.x, f_world.y, f_world.z, 0.0, 0.0, 0.0];
     }
 
+    /// The force [`Simulation::set_trunk_force`] last set, N, world frame.
+    pub fn trunk_force(&self) -> Vector3<f64> {
+        let f = self.data.xfrc_applied()[self.handles.trunk_body];
+        Vector3::new(f[0], f[1], f[2])
+    }
+
     pub fn total_mass_kg(&self) -> f64 {
         self.total_mass_kg
     }

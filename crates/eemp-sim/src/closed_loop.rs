@@ -18,8 +18,9 @@ use std::time::Instant;
 /// With `duration_s` 0 the robot's velocity steps between two physics steps (the legs move with
 /// the trunk, as legged_gym's `push_robots` does): no onboard sensor can sense such a step
 /// until the sliding feet stop, so an estimator must lag it. With `duration_s` > 0 it is a force
-/// of `mass × dv / duration_s` on the trunk's centre of mass over that time — what a hand or a
-/// collision does — which the accelerometer senses and the feet resist.
+/// on the trunk's centre of mass for n = round(duration_s / dt) ≥ 1 physics steps, of
+/// `mass × dv / (n·dt)` — what a hand or a collision does — which the accelerometer senses and
+/// the feet resist.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Push {
     pub at_s: f64,
@@ -210,8 +211,8 @@ pub fn percentile(values: &[f64], p: f64) -> f64 {
 pub struct ClosedLoop {
     sim: Simulation,
     pending: Vec<Push>,
-    /// Force pulses under way (they end at `at_s + duration_s`).
-    pulses: Vec<Push>,
+    /// Force pulses under way: the force on the trunk and the physics steps it has left.
+    pulses: Vec<(Vector3<f64>, usize)>,
     limits: FallLimits,
     stats: LoopStats,
     t_start: f64,
@@ -322,17 +323,24 @@ impl ClosedLoop {
         }
     }
 
-    /// The episode's pushes still to come, their times counted from now (what a snapshot of an
-    /// episode keeps; force pulses under way are not included).
-    pub fn pending_pushes(&self) -> Vec<Push> {
-        let elapsed = self.elapsed_s();
-        self.pending
-            .iter()
-            .map(|p| Push {
-                at_s: p.at_s - elapsed,
-                ..*p
-            })
-            .collect()
+    /// The episode's pushes still to come (times from the episode's start; force pulses under
+    /// way are not included). With [`ClosedLoop::episode_start_s`] and [`ClosedLoop::resume`],
+    /// what a snapshot of an episode keeps.
+    pub fn pending_pushes(&self) -> &[Push] {
+        &self.pending
+    }
+
+    /// Simulation time at which the episode started, s.
+    pub fn episode_start_s(&self) -> f64 {
+        self.t_start
+    }
+
+    /// Continues an episode restored into the simulation: like [`ClosedLoop::restart`], but
+    /// with its pending pushes timed from the episode's original start (so a restored episode
+    /// meets them at exactly the steps the uninterrupted one does).
+    pub fn resume(&mut self, pushes: &[Push], episode_start_s: f64) {
+        self.restart(pushes);
+        self.t_start = episode_start_s;
     }
 
     /// Feet carrying more than [`LOADED_FOOT_N`] after the last step.
@@ -439,15 +447,23 @@ impl ClosedLoop {
         let sim = &mut self.sim;
         sim.advance(&output.torques);
         self.loaded = sim.foot_normal_forces_n().map(|_, f| *f > LOADED_FOOT_N);
-        // Pushes take effect between steps.
+        // Pushes take effect between steps. A pulse acts for n = round(duration / dt) ≥ 1
+        // whole physics steps with the force that gives exactly mass × Δv over them.
+        let had_pulses = !self.pulses.is_empty();
+        for p in self.pulses.iter_mut() {
+            p.1 -= 1;
+        }
+        self.pulses.retain(|p| p.1 > 0);
         let t_start = self.t_start;
+        let (dt, m) = (sim.timestep_s(), sim.total_mass_kg());
         let pulses = &mut self.pulses;
         self.pending.retain(|p| {
             if sim.time_s() - t_start < p.at_s {
                 return true;
             }
             if p.duration_s > 0.0 {
-                pulses.push(*p);
+                let n = ((p.duration_s / dt).round() as usize).max(1);
+                pulses.push((p.dv_world * (m / (n as f64 * dt)), n));
             } else {
                 let qvel = sim.data_mut().qvel_mut();
                 for (v, dv) in qvel[..3].iter_mut().zip(p.dv_world.iter()) {
@@ -456,13 +472,8 @@ impl ClosedLoop {
             }
             false
         });
-        if !pulses.is_empty() {
-            let t = sim.time_s() - t_start;
-            // A pulse of n steps covers n physics steps exactly (rounded), whatever the phase.
-            pulses.retain(|p| t < p.at_s + p.duration_s - 0.5 * sim.timestep_s());
-            let m = sim.total_mass_kg();
-            let force: Vector3<f64> = pulses.iter().map(|p| p.dv_world * (m / p.duration_s)).sum();
-            sim.set_trunk_force(force);
+        if had_pulses || !pulses.is_empty() {
+            sim.set_trunk_force(pulses.iter().map(|p| p.0).sum());
         }
         let t5 = Instant::now();
         let stats = &mut self.stats;

@@ -1,10 +1,14 @@
 //! Short closed-loop standing runs: rise, hold, follow, absorb a push.
 
 use eemp_core::controller::ControllerConfig;
+use eemp_core::joint_pd::{JointPd, PdGains};
+use eemp_core::planner::VelocityCommand;
 use eemp_core::robot::RobotConfig;
 use eemp_core::stand_profile::BodyMotionProfile;
-use eemp_sim::closed_loop::Push;
+use eemp_sim::closed_loop::{ClosedLoop, FallLimits, Push};
+use eemp_sim::mjcf::SceneExtras;
 use eemp_sim::stand::run_stand;
+use eemp_sim::Simulation;
 use nalgebra::Vector3;
 
 #[test]
@@ -110,4 +114,48 @@ fn a_push_as_a_force_pulse_builds_up_over_its_duration() {
     assert!(pulse_early.abs() < 0.05, "{pulse_early}");
     // The feet and the controller resist it, so less than the full 0.3 m/s but most of it.
     assert!(pulse_end > 0.15 && pulse_end < 0.32, "{pulse_end}");
+}
+
+/// A pulse acts for round(duration / dt) whole physics steps with exactly mass × Δv of impulse,
+/// whatever the phase its start meets, and a restart clears a pulse under way.
+#[test]
+fn a_pulse_acts_for_its_whole_steps_and_a_restart_clears_it() {
+    let robot = RobotConfig::a1();
+    let sim = Simulation::new(&robot, &SceneExtras::default()).unwrap();
+    let (dt, m) = (sim.timestep_s(), sim.total_mass_kg());
+    // Starts 0.6 of a step after a step boundary; 10.4 steps long → 10 steps.
+    let pulse = Push {
+        at_s: 0.0106,
+        dv_world: Vector3::new(0.0, 0.3, 0.0),
+        duration_s: 0.0104,
+    };
+    let mut lp = ClosedLoop::new(sim, &[pulse], FallLimits::default());
+    let mut pd = JointPd {
+        gains: PdGains::default(),
+        targets: robot.standing_pose(),
+        torque_limit_nm: robot.leg.torque_limit_nm,
+    };
+    // The force set after a step acts during the next one.
+    let mut forces = Vec::new();
+    for _ in 0..40 {
+        lp.step(&mut pd, VelocityCommand::default(), &mut |_| {});
+        forces.push(lp.sim().trunk_force());
+    }
+    let on: Vec<_> = forces.iter().filter(|f| f.norm() > 0.0).collect();
+    assert_eq!(on.len(), 10, "{forces:?}");
+    let impulse: f64 = on.iter().map(|f| f.y * dt).sum();
+    assert!(
+        (impulse - m * 0.3).abs() < 1e-9,
+        "{impulse} against {}",
+        m * 0.3
+    );
+    assert_eq!(forces.last().unwrap().norm(), 0.0);
+    // A restart during a pulse leaves no force behind.
+    lp.restart(&[Push { at_s: 0.0, ..pulse }]);
+    for _ in 0..3 {
+        lp.step(&mut pd, VelocityCommand::default(), &mut |_| {});
+    }
+    assert!(lp.sim().trunk_force().norm() > 0.0);
+    lp.restart(&[]);
+    assert_eq!(lp.sim().trunk_force().norm(), 0.0);
 }

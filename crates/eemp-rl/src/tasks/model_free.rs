@@ -633,9 +633,12 @@ pub(crate) fn run_period(
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ModelFreeSnapshot {
     pub sim: SimSnapshot,
-    /// The episode's pushes still to come: (seconds from now, Δv world).
+    /// The episode's pushes still to come, (s from the episode's start, Δv world), and the
+    /// simulation time the episode started at (training pushes are velocity steps).
     #[serde(default)]
     pub pushes: Vec<(f64, [f64; 3])>,
+    #[serde(default)]
+    pub episode_start_s: Option<f64>,
     pub memory: PolicyMemory,
     pub command: VelocityCommand,
     pub steps: usize,
@@ -769,6 +772,7 @@ impl ModelFreeEnv {
                 .iter()
                 .map(|p| (p.at_s, p.dv_world.into()))
                 .collect(),
+            episode_start_s: Some(self.loop_.episode_start_s()),
             memory: self.memory.clone(),
             command: self.command,
             steps: self.steps,
@@ -789,7 +793,10 @@ impl ModelFreeEnv {
             .iter()
             .map(|(at_s, dv)| Push::step(*at_s, Vector3::from(*dv)))
             .collect();
-        self.loop_.restart(&pushes);
+        match s.episode_start_s {
+            Some(t) => self.loop_.resume(&pushes, t),
+            None => self.loop_.restart(&pushes),
+        }
         self.memory = s.memory.clone();
         self.command = s.command;
         self.steps = s.steps;
