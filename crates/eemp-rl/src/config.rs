@@ -194,6 +194,10 @@ pub struct TrainConfig {
     /// What the policy observes (and EEMP-RL's controller sees): the simulator's state, or the
     /// Kalman filter on the simulated IMU and encoders with A1-like noise, as on the robot.
     pub estimator: TrainEstimator,
+    /// Fine-tuning: start from this policy file's networks, exploration noise and observation
+    /// normaliser (same task and network shapes) instead of random ones; the optimiser starts
+    /// fresh. None: from scratch.
+    pub init_policy: Option<std::path::PathBuf>,
 }
 
 /// The state a policy trains on. On the filter a checkpoint holds no filter or sensor state:
@@ -223,6 +227,7 @@ impl Default for TrainConfig {
             eemp_rl: EempRlConfig::default(),
             cart_pole: CartPoleConfig::default(),
             estimator: TrainEstimator::GroundTruth,
+            init_policy: None,
         }
     }
 }

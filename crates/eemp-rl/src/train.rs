@@ -325,13 +325,41 @@ impl<E: Env> Trainer<E> {
         };
         if opts.resume && checkpoint_dir(&opts.out).join("state.json").exists() {
             t.load_checkpoint(&checkpoint_dir(&opts.out))?;
-        } else if opts.resume {
-            eprintln!(
-                "note: no checkpoint in {}; starting from scratch",
-                opts.out.display()
-            );
+        } else {
+            if opts.resume {
+                eprintln!(
+                    "note: no checkpoint in {}; starting from scratch",
+                    opts.out.display()
+                );
+            }
+            if let Some(path) = &config.init_policy {
+                t.start_from(path)?;
+            }
         }
         Ok(t)
+    }
+
+    /// Fine-tuning ([`TrainConfig::init_policy`]): the networks, log-std and normaliser of a
+    /// policy file of the same task and shapes.
+    fn start_from(&mut self, path: &Path) -> Result<(), String> {
+        let p = Policy::load(path, Some(self.config.task))?;
+        let (ours, theirs) = (self.policy.net.vars(), p.net.vars());
+        let shapes = |v: &[candle_core::Var]| -> Vec<Vec<usize>> {
+            v.iter().map(|x| x.dims().to_vec()).collect()
+        };
+        if shapes(&ours) != shapes(&theirs) {
+            return Err(format!(
+                "init_policy {}: its networks ({:?}) are not this config's ({:?})",
+                path.display(),
+                shapes(&theirs),
+                shapes(&ours)
+            ));
+        }
+        for (dst, src) in ours.iter().zip(theirs) {
+            dst.set(src.as_tensor()).map_err(|e| e.to_string())?;
+        }
+        self.policy.normalizer = p.normalizer;
+        Ok(())
     }
 
     fn total_iterations(&self) -> usize {

@@ -511,3 +511,42 @@ fn a_policy_trains_on_the_kalman_filter_seeing_noisy_sensors() {
     cp.estimator = TrainEstimator::Kf;
     assert!(cp.validate().unwrap_err().to_string().contains("estimator"));
 }
+
+#[test]
+fn a_fine_tuned_run_starts_from_its_init_policy() {
+    let dir = tempfile::tempdir().unwrap();
+    let (a, _) = run(&cart_pole(1e-3, 40_960), &dir.path().join("a"), false, None);
+    let file = dir.path().join("a/policy.safetensors");
+    // Learning rate 0 keeps the networks where they start: the init policy's, and it plays as
+    // well as it (a fresh network at learning rate 0 does not: see the test above).
+    let mut tune = cart_pole(0.0, 16 * 64 * 2);
+    tune.init_policy = Some(file.clone());
+    let (b, logs) = run(&tune, &dir.path().join("b"), false, None);
+    assert_eq!(params(&a), params(&b));
+    assert!(
+        logs.last().unwrap().mean_return >= 100.0,
+        "{}",
+        logs.last().unwrap().mean_return
+    );
+    // Other network shapes are refused, naming the file.
+    let mut other = tune.clone();
+    other.network.actor_hidden = vec![16];
+    let e = train(
+        &other,
+        &RobotConfig::a1(),
+        &TrainOptions {
+            out: dir.path().join("c"),
+            resume: false,
+            threads: 1,
+            max_iterations: None,
+        },
+        &mut |_| {},
+    )
+    .err()
+    .expect("refused");
+    assert!(
+        e.contains("init_policy") && e.contains("policy.safetensors"),
+        "{e}"
+    );
+    assert!(!dir.path().join("c").exists());
+}
