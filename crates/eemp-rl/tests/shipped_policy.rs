@@ -58,6 +58,31 @@ fn the_shipped_model_free_policy_walks_5_s_at_0_5_m_per_s() {
 }
 
 #[test]
+fn the_shipped_robust_model_free_policy_walks_5_s_at_0_5_m_per_s_on_the_filter() {
+    // Fine-tuned on the Kalman filter with pushes: it runs on the filter with A1-like noise.
+    let robot = RobotConfig::a1();
+    let policy = Policy::load(
+        &repo_file("policies/a1_model_free_robust.safetensors"),
+        Some(TaskKind::ModelFree),
+    )
+    .unwrap();
+    assert_eq!(policy.config.estimator, eemp_rl::config::TrainEstimator::Kf);
+    assert!(policy.config.model_free.pushes.every_s > 0.0);
+    let mut c = PolicyController::new(policy, &robot, robot.simulation.timestep_s).unwrap();
+    let start = StartPose::from_joints(&robot, c.default_pose());
+    let mut spec = walk_spec(0.5, 5.0);
+    spec.seed = 1;
+    spec.state_source = eemp_sim::closed_loop::StateSource::kf(
+        &robot,
+        eemp_sim::sensors::SensorNoise::default(),
+        1,
+    );
+    let run = run_walk_with(&robot, &spec, &start, &mut c, |_| {}).unwrap();
+    assert_walked(&run, 0.1, 1.2);
+    assert_eq!(c.invalid_steps, 0);
+}
+
+#[test]
 fn the_shipped_imitation_policy_walks_5_s_at_0_5_m_per_s_in_the_dogs_trot() {
     let robot = RobotConfig::a1();
     let path = repo_file("policies/a1_imitation.safetensors");
