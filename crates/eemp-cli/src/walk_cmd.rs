@@ -296,59 +296,60 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
     let video_every = (1.0 / (crate::video::FPS * robot.simulation.timestep_s)).round() as usize;
     let observer = |r: &eemp_sim::closed_loop::StepRecord| {
         let s = &r.state.body;
-        let rpy = s.rpy();
         let v = s.v_heading();
-        // What the controller saw (the truth on ground truth), in its own heading frame (its
-        // yaw estimate; the truth's columns use the true yaw).
-        let v_est = r.estimate.body.v_heading();
         let cmd = spec.profile.command_at(r.state.time_s);
-        let qd = r.state.joints.map(|_, j| j.qd);
-        let mut row = vec![
-            r.state.time_s,
-            s.p_world.x,
-            s.p_world.y,
-            s.p_world.z,
-            rpy.x,
-            rpy.y,
-            rpy.z,
-            v.x,
-            v.y,
-            v.z,
-            v_est.x,
-            v_est.y,
-            v_est.z,
-            r.estimate.body.p_world.z,
-            cmd.vx_mps,
-            cmd.vy_mps,
-            cmd.yaw_rate_rps,
-            positive_power_w(&qd, &r.output.torques),
-        ];
-        for leg in Leg::ALL {
-            let f = r.feet_world[leg];
-            let z_ref = r
-                .plan
-                .and_then(|p| p.swing[leg])
-                .map(|sw| sw.p_body.z)
-                .unwrap_or(f64::NAN);
-            row.extend([
-                f.x,
-                f.y,
-                f.z,
-                z_ref,
-                r.stance()[leg] as u8 as f64,
-                r.contacts[leg] as u8 as f64,
-            ]);
-            row.extend(r.output.torques[leg].iter());
-            row.extend(qd[leg].iter());
-            row.extend(r.state.joints[leg].q.iter());
-        }
         if args.video.is_some() && i.is_multiple_of(video_every) {
             frames.push(crate::video::VideoFrame::of(
                 r.state,
                 [cmd.vx_mps, cmd.vy_mps],
             ));
         }
+        // A trace row is built only for the steps written (every `trace_every`-th).
         if i.is_multiple_of(trace_every) {
+            let rpy = s.rpy();
+            // What the controller saw (the truth on ground truth), in its own heading frame
+            // (its yaw estimate; the truth's columns use the true yaw).
+            let v_est = r.estimate.body.v_heading();
+            let qd = r.state.joints.map(|_, j| j.qd);
+            let mut row = vec![
+                r.state.time_s,
+                s.p_world.x,
+                s.p_world.y,
+                s.p_world.z,
+                rpy.x,
+                rpy.y,
+                rpy.z,
+                v.x,
+                v.y,
+                v.z,
+                v_est.x,
+                v_est.y,
+                v_est.z,
+                r.estimate.body.p_world.z,
+                cmd.vx_mps,
+                cmd.vy_mps,
+                cmd.yaw_rate_rps,
+                positive_power_w(&qd, &r.output.torques),
+            ];
+            for leg in Leg::ALL {
+                let f = r.feet_world[leg];
+                let z_ref = r
+                    .plan
+                    .and_then(|p| p.swing[leg])
+                    .map(|sw| sw.p_body.z)
+                    .unwrap_or(f64::NAN);
+                row.extend([
+                    f.x,
+                    f.y,
+                    f.z,
+                    z_ref,
+                    r.stance()[leg] as u8 as f64,
+                    r.contacts[leg] as u8 as f64,
+                ]);
+                row.extend(r.output.torques[leg].iter());
+                row.extend(qd[leg].iter());
+                row.extend(r.state.joints[leg].q.iter());
+            }
             if let Err(e) = trace.row(&row) {
                 write_error.get_or_insert(e);
             }
