@@ -1,6 +1,7 @@
 //! `--estimator`, `--ideal-sensors`, `--seed`: what a controller sees, shared by every command
 //! that runs the robot.
 
+use eemp_core::estimator::KfConfig;
 use eemp_core::robot::RobotConfig;
 use eemp_sim::closed_loop::StateSource;
 use eemp_sim::sensors::SensorNoise;
@@ -20,38 +21,67 @@ pub struct StateSourceArgs {
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// With --estimator kf: take a velocity jump the stance legs agree on at once when it is at
-    /// least this large, m/s (`KfConfig::velocity_jump_mps`; 0: off, the default; 0.15 was
-    /// measured in the README's robustness section).
-    #[arg(long, default_value_t = 0.0)]
-    pub kf_velocity_jump: f64,
+    /// least this large, m/s (`KfConfig::velocity_jump_mps`, default 0.15; 0: off).
+    #[arg(long)]
+    pub kf_velocity_jump: Option<f64>,
+    /// With --estimator kf: fade out a stance leg whose velocity disagrees with the estimate and
+    /// with every other stance leg by more than this, m/s (`KfConfig::leg_outlier_mps`, default
+    /// 0.15; 0: off).
+    #[arg(long)]
+    pub kf_leg_outlier: Option<f64>,
 }
 
 impl StateSourceArgs {
     pub fn source(&self, robot: &RobotConfig) -> Result<StateSource, String> {
         let mut source = state_source(&self.estimator, self.ideal_sensors, self.seed, robot)?;
-        with_velocity_jump(&mut source, self.kf_velocity_jump, "--kf-velocity-jump")?;
+        with_kf_options(
+            &mut source,
+            &KfOptions {
+                velocity_jump_mps: self.kf_velocity_jump,
+                leg_outlier_mps: self.kf_leg_outlier,
+            },
+            ["--kf-velocity-jump", "--kf-leg-outlier"],
+        )?;
         Ok(source)
     }
 }
 
-/// Sets the filter's velocity-jump threshold (`name` is the option, for the error); refused
-/// out of range or for a run on ground truth unless 0.
-pub fn with_velocity_jump(
+/// Settings of the filter that a command or a suite method may override (`None`: the filter's
+/// default).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct KfOptions {
+    pub velocity_jump_mps: Option<f64>,
+    pub leg_outlier_mps: Option<f64>,
+}
+
+/// Applies `options` to the filter (`names` are the options' names, for the errors); refused
+/// out of the filter's range, or for a run on ground truth.
+pub fn with_kf_options(
     source: &mut StateSource,
-    jump_mps: f64,
-    name: &str,
+    options: &KfOptions,
+    names: [&str; 2],
 ) -> Result<(), String> {
+    let given = [options.velocity_jump_mps, options.leg_outlier_mps];
     match source {
         StateSource::Kf { kf, .. } => {
-            kf.velocity_jump_mps = jump_mps;
-            // The filter's own range, reported under the option's name.
-            kf.validate()
-                .map_err(|e| format!("{name} {jump_mps}: {e}"))?;
+            // One option at a time, each checked by the filter's own range and reported under
+            // the option's name.
+            let setters: [fn(&mut KfConfig, f64); 2] = [
+                |kf, v| kf.velocity_jump_mps = v,
+                |kf, v| kf.leg_outlier_mps = v,
+            ];
+            for ((value, name), set) in given.into_iter().zip(names).zip(setters) {
+                if let Some(v) = value {
+                    set(kf, v);
+                    kf.validate().map_err(|e| format!("{name}: {e}"))?;
+                }
+            }
         }
-        StateSource::GroundTruth if jump_mps != 0.0 => {
-            return Err(format!("{name} {jump_mps} needs the kf estimator"))
+        StateSource::GroundTruth => {
+            if let Some((name, v)) = names.iter().zip(given).find_map(|(n, v)| v.map(|v| (n, v))) {
+                return Err(format!("{name} {v} needs the kf estimator"));
+            }
         }
-        StateSource::GroundTruth => {}
     }
     Ok(())
 }

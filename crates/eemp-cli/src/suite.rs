@@ -7,13 +7,15 @@
 //! drops; runs with a row are not run again. `eemp compare` and `eemp robustness` are this
 //! runner with their own configs and reports.
 
+use crate::state_source_arg::KfOptions;
 use eemp_core::planner::params_table::ParamsTable;
-use eemp_core::planner::{Gait, PlannerConfig, PlannerParams, VelocityCommand};
+use eemp_core::planner::{FreePairing, Gait, PlannerConfig, PlannerParams, VelocityCommand};
 use eemp_core::robot::RobotConfig;
 use eemp_rl::config::TaskKind;
 use eemp_rl::controller::PolicyController;
 use eemp_rl::policy::Policy;
 use eemp_rl::tasks::eemp_rl::EempRlController;
+use eemp_sim::closed_loop::StateSource;
 use eemp_sim::scenario::Scenario;
 use eemp_sim::walk::{eemp_controller, run_walk_with, StartPose, VelocityProfile, WalkSpec};
 use rayon::prelude::*;
@@ -45,15 +47,39 @@ pub struct MethodConfig {
     /// EEMP: lower the MPC's friction coefficient after slips (`eemp_core::slip`).
     #[serde(default)]
     pub adapt_friction: bool,
-    /// On the filter: its velocity-jump threshold, m/s (`KfConfig::velocity_jump_mps`; 0: off).
+    /// On the filter: its velocity-jump threshold, m/s (`KfConfig::velocity_jump_mps`; 0: off;
+    /// absent: the filter's default).
     #[serde(default)]
-    pub kf_velocity_jump_mps: f64,
+    pub kf_velocity_jump_mps: Option<f64>,
+    /// On the filter: its leg-outlier threshold, m/s (`KfConfig::leg_outlier_mps`; 0: off;
+    /// absent: the filter's default).
+    #[serde(default)]
+    pub kf_leg_outlier_mps: Option<f64>,
+    /// EEMP's free gait: when a diagonal partner swings along (`FreePairing`; absent: its
+    /// default; `{ pair_tolerance = 0.0, support_check = false }` is the earlier rule).
+    #[serde(default)]
+    pub free_pairing: Option<FreePairing>,
 }
 
 impl MethodConfig {
     /// The method's estimator: its own or the suite's.
     pub fn estimator<'a>(&'a self, suite: &'a SuiteConfig) -> &'a str {
         self.estimator.as_deref().unwrap_or(&suite.estimator)
+    }
+
+    /// Applies the method's filter settings to `source`.
+    fn apply_kf_options(&self, source: &mut StateSource) -> Result<(), String> {
+        crate::state_source_arg::with_kf_options(
+            source,
+            &KfOptions {
+                velocity_jump_mps: self.kf_velocity_jump_mps,
+                leg_outlier_mps: self.kf_leg_outlier_mps,
+            },
+            [
+                &format!("method '{}': kf_velocity_jump_mps", self.name),
+                &format!("method '{}': kf_leg_outlier_mps", self.name),
+            ],
+        )
     }
 }
 
@@ -187,11 +213,7 @@ impl SuiteConfig {
                 &RobotConfig::a1(),
             )
             .map_err(|e| format!("method '{}': {e}", m.name))?;
-            crate::state_source_arg::with_velocity_jump(
-                &mut source,
-                m.kf_velocity_jump_mps,
-                &format!("method '{}': kf_velocity_jump_mps", m.name),
-            )?;
+            m.apply_kf_options(&mut source)?;
         }
         // Run ids must be unique (resume finds runs by id).
         let mut seeds = self.seeds.clone();
@@ -224,14 +246,26 @@ impl SuiteConfig {
                         .clone()
                         .unwrap_or_else(|| format!("tables/a1_{g}.toml").into());
                     ParamsTable::load(&t).map_err(|e| format!("method '{}': {e}", m.name))?;
+                    PlannerConfig {
+                        gait: g,
+                        free_pairing: m.free_pairing.unwrap_or_default(),
+                        ..Default::default()
+                    }
+                    .validate()
+                    .map_err(|e| format!("method '{}': {e}", m.name))?;
                 }
                 k @ ("model-free" | "imitation" | "eemp-rl") => {
-                    if m.adapt_friction {
-                        return Err(format!(
-                            "method '{}': adapt_friction is for kind eemp (a policy runs with \
-                             the controller it was trained with)",
-                            m.name
-                        ));
+                    for (set, key) in [
+                        (m.adapt_friction, "adapt_friction"),
+                        (m.free_pairing.is_some(), "free_pairing"),
+                    ] {
+                        if set {
+                            return Err(format!(
+                                "method '{}': {key} is for kind eemp (a policy runs with the \
+                                 controller it was trained with)",
+                                m.name
+                            ));
+                        }
                     }
                     let p = m.policy.as_ref().ok_or_else(|| {
                         format!("method '{}': kind {k} needs policy = FILE", m.name)
@@ -332,6 +366,7 @@ pub fn simulate(
     let mut spec = WalkSpec::constant(
         PlannerConfig {
             gait,
+            free_pairing: m.free_pairing.unwrap_or_default(),
             ..Default::default()
         },
         PlannerParams::default(),
@@ -344,11 +379,7 @@ pub fn simulate(
     spec.seed = run.seed;
     spec.state_source =
         crate::state_source_arg::state_source(m.estimator(cfg), false, run.seed, robot)?;
-    crate::state_source_arg::with_velocity_jump(
-        &mut spec.state_source,
-        m.kf_velocity_jump_mps,
-        &format!("method '{}': kf_velocity_jump_mps", m.name),
-    )?;
+    m.apply_kf_options(&mut spec.state_source)?;
     if let Some(p) = sc.load_profile()? {
         spec.profile = p;
     }

@@ -599,8 +599,21 @@ pub fn robustness(args: &SuiteArgs) -> Result<(), String> {
         .filter(|(a, b)| {
             a.estimator(&cfg) == "kf"
                 && b.estimator(&cfg) == "ground-truth"
-                && (&a.kind, &a.gait, &a.table, &a.policy, a.adapt_friction)
-                    == (&b.kind, &b.gait, &b.table, &b.policy, b.adapt_friction)
+                && (
+                    &a.kind,
+                    &a.gait,
+                    &a.table,
+                    &a.policy,
+                    a.adapt_friction,
+                    a.free_pairing,
+                ) == (
+                    &b.kind,
+                    &b.gait,
+                    &b.table,
+                    &b.policy,
+                    b.adapt_friction,
+                    b.free_pairing,
+                )
         })
         .collect();
     if !pairs.is_empty() {

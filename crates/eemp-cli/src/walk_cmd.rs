@@ -5,7 +5,7 @@ use crate::plots::{gait_diagram, line_panels, Panel, Series};
 use eemp_core::config_error::load_toml;
 use eemp_core::leg::Leg;
 use eemp_core::metrics::positive_power_w;
-use eemp_core::planner::{Gait, PlannerConfig, PlannerParams, VelocityCommand};
+use eemp_core::planner::{FreePairing, Gait, PlannerConfig, PlannerParams, VelocityCommand};
 use eemp_core::robot::RobotConfig;
 use eemp_sim::closed_loop::Push;
 use eemp_sim::walk::{run_walk, run_walk_with, StartPose, VelocityProfile, WalkSpec};
@@ -86,6 +86,19 @@ pub struct WalkArgs {
     /// floor's. Default: `MpcConfig`'s 0.6.
     #[arg(long)]
     pub mpc_friction: Option<f64>,
+    /// Free gait: take a leg's diagonal partner along when its eq. (5) value is above 1 − this
+    /// (`FreePairing::pair_tolerance`, 0–1; default 0.5; 0: only when it is outside too).
+    #[arg(long)]
+    pub free_pair_tolerance: Option<f64>,
+    /// Free gait: take the partner along when a lone swing would leave the trunk less than this
+    /// inside the other three feet's triangle, m (`FreePairing::support_margin_m`, −0.2–0.2;
+    /// default 0).
+    #[arg(long)]
+    pub free_support_margin: Option<f64>,
+    /// Free gait: the earlier rule, a partner only when it is outside its ellipse too
+    /// (`FreePairing::UNPAIRED`; EEMP-RL's shipped policy was trained with it).
+    #[arg(long, conflicts_with_all = ["free_pair_tolerance", "free_support_margin"])]
+    pub free_unpaired: bool,
     /// Lower the MPC's friction coefficient when a loaded stance foot slides (`eemp_core::slip`;
     /// helps on floors less grippy than assumed, hurts recovery from pushes).
     #[arg(long)]
@@ -193,7 +206,9 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
         retarget_swing: args.retarget_swing,
         max_accel_mps2: args.max_accel,
         preview_swings: args.preview_swings,
+        free_pairing: free_pairing(args),
     };
+    planner.validate().map_err(|e| e.to_string())?;
     let command = VelocityCommand {
         vx_mps: args.speed,
         vy_mps: args.lateral,
@@ -425,6 +440,7 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
         "retarget_swing": args.retarget_swing,
         "max_accel_mps2": args.max_accel,
         "preview_swings": args.preview_swings,
+        "free_pairing": spec.planner.free_pairing,
         "duration_s": st.sim_time_s,
         "metrics_window_s": [spec.metrics_start_s, st.sim_time_s],
         "fell": st.fell,
@@ -560,6 +576,21 @@ fn progress_factor(
     given
         .or_else(|| table.and_then(|t| t.progress_factor))
         .unwrap_or(eemp_core::planner::PAPER_PROGRESS_FACTOR)
+}
+
+/// `--free-unpaired`, `--free-pair-tolerance`, `--free-support-margin` over the defaults.
+fn free_pairing(args: &WalkArgs) -> FreePairing {
+    if args.free_unpaired {
+        return FreePairing::UNPAIRED;
+    }
+    let mut p = FreePairing::default();
+    if let Some(t) = args.free_pair_tolerance {
+        p.pair_tolerance = t;
+    }
+    if let Some(m) = args.free_support_margin {
+        p.support_margin_m = m;
+    }
+    p
 }
 
 #[cfg(test)]

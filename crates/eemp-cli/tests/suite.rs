@@ -3,6 +3,7 @@
 //! refused before anything runs.
 
 use eemp_cli::suite::{load_rows, run_suite, MethodConfig, ScenarioConfig, SuiteConfig};
+use eemp_core::planner::FreePairing;
 use std::path::{Path, PathBuf};
 
 fn repo(p: &str) -> PathBuf {
@@ -23,7 +24,9 @@ fn config() -> SuiteConfig {
                 policy: None,
                 estimator: None,
                 adapt_friction: false,
-                kf_velocity_jump_mps: 0.0,
+                kf_velocity_jump_mps: None,
+                kf_leg_outlier_mps: None,
+                free_pairing: None,
             },
             MethodConfig {
                 name: "model-free RL".into(),
@@ -33,7 +36,9 @@ fn config() -> SuiteConfig {
                 policy: Some(repo("policies/a1_model_free.safetensors")),
                 estimator: None,
                 adapt_friction: false,
-                kf_velocity_jump_mps: 0.0,
+                kf_velocity_jump_mps: None,
+                kf_leg_outlier_mps: None,
+                free_pairing: None,
             },
         ],
         scenarios: vec![
@@ -136,16 +141,31 @@ fn bad_suite_configs_are_refused_naming_the_value() {
     c.scenarios[0].profile = Some(repo("profiles/nope.toml"));
     assert!(c.validate().unwrap_err().contains("nope.toml"));
     let mut c = config();
-    c.methods[0].kf_velocity_jump_mps = -0.1;
+    c.methods[0].kf_velocity_jump_mps = Some(-0.1);
     let e = c.validate().unwrap_err();
     assert!(
         e.contains("kf_velocity_jump_mps") && e.contains("-0.1"),
         "{e}"
     );
     let mut c = config();
+    c.methods[0].kf_leg_outlier_mps = Some(f64::NAN);
+    let e = c.validate().unwrap_err();
+    assert!(e.contains("kf_leg_outlier_mps") && e.contains("NaN"), "{e}");
+    let mut c = config();
     c.methods[0].estimator = Some("ground-truth".into());
-    c.methods[0].kf_velocity_jump_mps = 0.15;
+    c.methods[0].kf_velocity_jump_mps = Some(0.15);
     assert!(c.validate().unwrap_err().contains("needs the kf estimator"));
+    let mut c = config();
+    c.methods[0].free_pairing = Some(FreePairing {
+        pair_tolerance: 1.5,
+        ..Default::default()
+    });
+    let e = c.validate().unwrap_err();
+    assert!(e.contains("pair_tolerance") && e.contains("1.5"), "{e}");
+    let mut c = config();
+    c.methods[1].free_pairing = Some(FreePairing::UNPAIRED);
+    let e = c.validate().unwrap_err();
+    assert!(e.contains("free_pairing is for kind eemp"), "{e}");
 }
 
 #[test]

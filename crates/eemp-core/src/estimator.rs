@@ -118,13 +118,20 @@ pub struct KfConfig {
     /// A velocity jump the IMU did not sense: when the fully trusted stance legs (two or more)
     /// agree on a trunk velocity at least this far from the estimate, m/s, the velocity's
     /// variance is raised by the squared difference, so the legs take over at once instead of
-    /// over the filter's ≈ 50 ms time constant. 0 turns it off (the default: on at 0.15 it
-    /// halves the lag after unsensed pushes, but a robot sliding on all feet reads as a jump
-    /// too, and the free gait then fell on the 0.3 floor as it does on ground truth).
+    /// over the filter's ≈ 50 ms time constant (after a push that moves the whole robot, which
+    /// the accelerometer cannot sense). A robot sliding on all its feet reads as a jump too.
+    /// 0 turns it off.
     pub velocity_jump_mps: f64,
     /// How closely the legs must agree for a jump: each within this fraction of the jump from
     /// their mean (a single slipping foot disagrees with the others and is left to the filter).
     pub velocity_jump_agreement: f64,
+    /// A planned stance leg whose velocity reading disagrees by more than this, m/s, both with
+    /// the estimate and with every other stance leg (trust ≥ ½) is a foot off the ground or
+    /// sliding: its trust fades linearly to 0 at twice this disagreement. (A stance leg's
+    /// reading is good to ≈ 0.02 m/s with the A1's encoders; when the trunk tipped over a lone
+    /// swing of the free gait, the diagonal foot, planned in stance, rose 2 cm off the ground
+    /// and its reading pulled the estimate 0.6 m/s off.) 0 turns it off.
+    pub leg_outlier_mps: f64,
 }
 
 impl Default for KfConfig {
@@ -138,8 +145,9 @@ impl Default for KfConfig {
             foot_height_sensor_noise: 0.001,
             foot_height_m: 0.02,
             suspect_factor: 100.0,
-            velocity_jump_mps: 0.0,
+            velocity_jump_mps: 0.15,
             velocity_jump_agreement: 0.5,
+            leg_outlier_mps: 0.15,
         }
     }
 }
@@ -179,7 +187,8 @@ impl KfConfig {
             self.velocity_jump_agreement,
             0.0,
             1.0,
-        )
+        )?;
+        check_range("kf.leg_outlier_mps", self.leg_outlier_mps, 0.0, 10.0)
     }
 }
 
@@ -286,20 +295,21 @@ impl LinearKf {
             self.p[(i, i)] += dt / 20.0 * c.imu_process_noise_position;
             self.p[(3 + i, 3 + i)] += dt * 9.81 / 20.0 * c.imu_process_noise_velocity;
         }
+        let v_legs = self.leg_velocities_world(input, &omega_world);
+        let trust = self.consistent_trust(&input.contact_trust, &v_legs);
         for leg in Leg::ALL {
-            let suspect = 1.0 + (1.0 - input.contact_trust[leg].clamp(0.0, 1.0)) * c.suspect_factor;
+            let suspect = 1.0 + (1.0 - trust[leg].clamp(0.0, 1.0)) * c.suspect_factor;
             for i in 0..3 {
                 let k = 6 + 3 * leg.index() + i;
                 self.p[(k, k)] += dt * c.foot_process_noise_position * suspect;
             }
         }
-        let v_legs = self.leg_velocities_world(input, &omega_world);
-        if let Some(jump) = self.unsensed_velocity_jump(input, &v_legs) {
+        if let Some(jump) = self.unsensed_velocity_jump(&trust, &v_legs) {
             for i in 0..3 {
                 self.p[(3 + i, 3 + i)] += jump[i] * jump[i];
             }
         }
-        let rows = self.measurements(input, &v_legs);
+        let rows = self.measurements(input, &trust, &v_legs);
         self.correct_sequential(&rows);
         RobotState {
             time_s: input.time_s,
@@ -335,11 +345,44 @@ impl LinearKf {
         })
     }
 
+    /// The plan's trust, faded for a leg that disagrees with both the estimate and every other
+    /// stance leg (see [`KfConfig::leg_outlier_mps`]). Legs that agree with each other keep their
+    /// trust however far from the estimate they are: that is how an unsensed velocity change
+    /// (a push, a landing) reaches the filter.
+    fn consistent_trust(
+        &self,
+        planned: &LegMap<f64>,
+        v_legs: &LegMap<Vector3<f64>>,
+    ) -> LegMap<f64> {
+        let gate = self.config.leg_outlier_mps;
+        if gate <= 0.0 {
+            return *planned;
+        }
+        let v_hat = self.velocity_world();
+        LegMap::from_fn(|leg| {
+            let trust = planned[leg];
+            if trust <= 0.0 {
+                return trust;
+            }
+            let off_estimate = (v_legs[leg] - v_hat).norm();
+            let seconded = Leg::ALL.into_iter().any(|other| {
+                other != leg
+                    && planned[other] >= 0.5
+                    && (v_legs[leg] - v_legs[other]).norm() <= gate
+            });
+            if seconded {
+                trust
+            } else {
+                trust * ((2.0 * gate - off_estimate) / gate).clamp(0.0, 1.0)
+            }
+        })
+    }
+
     /// The legs' common velocity minus the estimate, when the fully trusted legs agree on one
     /// far from it (see [`KfConfig::velocity_jump_mps`]).
     fn unsensed_velocity_jump(
         &self,
-        input: &EstimatorInput,
+        trust: &LegMap<f64>,
         v_legs: &LegMap<Vector3<f64>>,
     ) -> Option<Vector3<f64>> {
         let c = &self.config;
@@ -349,7 +392,7 @@ impl LinearKf {
         let trusted = || {
             Leg::ALL
                 .into_iter()
-                .filter(|&leg| input.contact_trust[leg] >= 1.0)
+                .filter(|&leg| trust[leg] >= 1.0)
                 .map(|leg| v_legs[leg])
         };
         let n = trusted().count();
@@ -363,7 +406,12 @@ impl LinearKf {
     }
 
     /// The 28 scalar measurements: (state index with +1, state index with −1, value, variance).
-    fn measurements(&self, input: &EstimatorInput, v_legs: &LegMap<Vector3<f64>>) -> Vec<Row> {
+    fn measurements(
+        &self,
+        input: &EstimatorInput,
+        trust: &LegMap<f64>,
+        v_legs: &LegMap<Vector3<f64>>,
+    ) -> Vec<Row> {
         let c = &self.config;
         let r = input.imu.r_world_body;
         let mut rows = Vec::with_capacity(28);
@@ -371,7 +419,7 @@ impl LinearKf {
         for leg in Leg::ALL {
             let i = leg.index();
             let j = &input.joints[leg];
-            let trust = input.contact_trust[leg].clamp(0.0, 1.0);
+            let trust = trust[leg].clamp(0.0, 1.0);
             let suspect = 1.0 + (1.0 - trust) * c.suspect_factor;
             let p_rel_world = r * self.kinematics.foot_position_body(leg, &j.q);
             let v_meas = v_legs[leg];
@@ -567,7 +615,11 @@ mod tests {
             contact_trust: LegMap::from_fn(|leg| [1.0, 0.3, 0.0, 0.8][leg.index()]),
         };
         let omega = input.imu.r_world_body * input.imu.gyro_body;
-        let rows = a.measurements(&input, &a.leg_velocities_world(&input, &omega));
+        let rows = a.measurements(
+            &input,
+            &input.contact_trust,
+            &a.leg_velocities_world(&input, &omega),
+        );
         assert_eq!(rows.len(), 28);
         a.correct_sequential(&rows);
         b.correct_batch(&rows);
@@ -610,12 +662,13 @@ mod tests {
 
     /// The filter on a gliding trunk whose velocity jumps from `v0` to `v1` at step 100 (the
     /// legs read it, the IMU does not); `slipping` moves only the FR leg's reading. Returns the
-    /// velocity estimate 10 steps (20 ms) after the jump.
+    /// velocity estimate `steps_after` steps of 2 ms after the jump.
     fn after_a_jump(
         config: KfConfig,
         v0: Vector3<f64>,
         v1: Vector3<f64>,
         slipping: bool,
+        steps_after: usize,
     ) -> Vector3<f64> {
         let robot = RobotConfig::a1();
         let kin = LegKinematics::new(&robot);
@@ -627,7 +680,7 @@ mod tests {
         let start = gliding(v0, 0.0, &kin, &feet);
         let mut kf = LinearKf::new(config, kin.clone(), &start).unwrap();
         let dt = 0.002;
-        for k in 1..=110 {
+        for k in 1..=100 + steps_after {
             let t = k as f64 * dt;
             let mut joints = gliding(v0, t, &kin, &feet).joints;
             if k > 100 {
@@ -658,26 +711,54 @@ mod tests {
     #[test]
     fn a_velocity_jump_the_legs_agree_on_is_taken_at_once() {
         let (v0, v1) = (Vector3::new(0.3, 0.0, 0.0), Vector3::new(0.3, 0.5, 0.0));
-        let on = KfConfig {
-            velocity_jump_mps: 0.15,
+        let on = KfConfig::default();
+        let off = KfConfig {
+            velocity_jump_mps: 0.0,
             ..KfConfig::default()
         };
-        let with = after_a_jump(on.clone(), v0, v1, false);
-        let without = after_a_jump(KfConfig::default(), v0, v1, false);
-        // Without the jump test (the default) the filter's ≈ 50 ms time constant leaves most of the jump.
+        let with = after_a_jump(on.clone(), v0, v1, false, 10);
+        let without = after_a_jump(off.clone(), v0, v1, false, 10);
+        // Without the jump test the filter's ≈ 50 ms time constant leaves most of the jump.
         assert!((with - v1).norm() < 0.02, "with {with:?}");
         assert!((without - v1).norm() > 0.1, "without {without:?}");
         // One foot slipping (1 m/s) disagrees with the other three: their mean moves by
-        // 0.25 m/s, beyond the threshold, but there is no jump: the filter as before.
+        // 0.25 m/s, beyond the threshold, but there is no jump: the filter as without the test.
         let v_slip = Vector3::new(0.3, 1.0, 0.0);
-        let slip = after_a_jump(on.clone(), v0, v_slip, true);
-        let slip_off = after_a_jump(KfConfig::default(), v0, v_slip, true);
+        let slip = after_a_jump(on.clone(), v0, v_slip, true, 10);
+        let slip_off = after_a_jump(off.clone(), v0, v_slip, true, 10);
         assert!((slip - slip_off).norm() < 1e-12, "{slip:?} vs {slip_off:?}");
         assert!((slip - v0).norm() < 0.25, "{slip:?}");
         // A jump below the threshold is left to the filter too.
         let small = Vector3::new(0.3, 0.1, 0.0);
-        let a = after_a_jump(on, v0, small, false);
-        let b = after_a_jump(KfConfig::default(), v0, small, false);
+        let a = after_a_jump(on, v0, small, false, 10);
+        let b = after_a_jump(off, v0, small, false, 10);
         assert!((a - b).norm() < 1e-12);
+    }
+
+    #[test]
+    fn a_leg_that_disagrees_with_the_estimate_and_the_other_legs_is_faded_out() {
+        let v0 = Vector3::new(0.3, 0.0, 0.0);
+        let no_jump = KfConfig {
+            velocity_jump_mps: 0.0,
+            ..KfConfig::default()
+        };
+        let no_gate = KfConfig {
+            leg_outlier_mps: 0.0,
+            ..no_jump.clone()
+        };
+        // FR's foot slides at 0.5 m/s sideways for 0.1 s: faded out, it leaves the estimate
+        // within 1 cm/s; trusted, it pulls it by up to a quarter (its share of four legs).
+        let v_slip = Vector3::new(0.3, 0.5, 0.0);
+        let gated = after_a_jump(no_jump.clone(), v0, v_slip, true, 50);
+        let pulled = after_a_jump(no_gate.clone(), v0, v_slip, true, 50);
+        assert!((gated - v0).norm() < 0.01, "gated {gated:?}");
+        assert!((pulled - v0).norm() > 0.05, "pulled {pulled:?}");
+        // All four legs agree on the new velocity: the gate changes nothing (here without the
+        // jump test, the filter takes it at its own pace).
+        let v1 = Vector3::new(0.3, 0.5, 0.0);
+        let taken = after_a_jump(no_jump, v0, v1, false, 100);
+        let ungated = after_a_jump(no_gate, v0, v1, false, 100);
+        assert_eq!(taken, ungated);
+        assert!((taken - v1).norm() < 0.05, "taken {taken:?}");
     }
 }

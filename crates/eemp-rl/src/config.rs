@@ -194,6 +194,9 @@ pub struct TrainConfig {
     /// What the policy observes (and EEMP-RL's controller sees): the simulator's state, or the
     /// Kalman filter on the simulated IMU and encoders with A1-like noise, as on the robot.
     pub estimator: TrainEstimator,
+    /// The filter's settings with `estimator = "kf"` (`eemp_core::estimator::KfConfig`; the
+    /// rest of it is the filter's default).
+    pub kf: TrainKf,
     /// Fine-tuning: start from this policy file's networks, exploration noise and observation
     /// normaliser (same task and network shapes) instead of random ones; the optimiser starts
     /// fresh. None: from scratch.
@@ -209,6 +212,34 @@ pub enum TrainEstimator {
     #[default]
     GroundTruth,
     Kf,
+}
+
+/// The settings of the filter a policy trains on that have changed since policies were first
+/// trained on it: a policy is evaluated on the filter it was trained on (the shipped robust
+/// model-free policy was trained before the jump test and the leg-outlier gate were on).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TrainKf {
+    pub velocity_jump_mps: f64,
+    pub leg_outlier_mps: f64,
+}
+
+impl Default for TrainKf {
+    fn default() -> Self {
+        let kf = eemp_core::estimator::KfConfig::default();
+        TrainKf {
+            velocity_jump_mps: kf.velocity_jump_mps,
+            leg_outlier_mps: kf.leg_outlier_mps,
+        }
+    }
+}
+
+impl TrainKf {
+    /// `kf` with these settings.
+    pub fn apply(&self, kf: &mut eemp_core::estimator::KfConfig) {
+        kf.velocity_jump_mps = self.velocity_jump_mps;
+        kf.leg_outlier_mps = self.leg_outlier_mps;
+    }
 }
 
 impl Default for TrainConfig {
@@ -227,6 +258,7 @@ impl Default for TrainConfig {
             eemp_rl: EempRlConfig::default(),
             cart_pole: CartPoleConfig::default(),
             estimator: TrainEstimator::GroundTruth,
+            kf: TrainKf::default(),
             init_policy: None,
         }
     }
@@ -250,6 +282,9 @@ impl TrainConfig {
         }
         self.ppo.validate()?;
         self.network.validate()?;
+        let mut kf = eemp_core::estimator::KfConfig::default();
+        self.kf.apply(&mut kf);
+        kf.validate()?;
         if self.task == TaskKind::CartPole && self.estimator == TrainEstimator::Kf {
             return Err(ConfigError::Invalid {
                 name: "estimator".into(),

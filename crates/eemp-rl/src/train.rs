@@ -173,11 +173,17 @@ pub fn make_envs_with(
     // On the filter each env has its own sensor noise, seeded from the config's seed.
     let source = |i: usize| match config.estimator {
         TrainEstimator::GroundTruth => StateSource::GroundTruth,
-        TrainEstimator::Kf => StateSource::kf(
-            robot,
-            SensorNoise::default(),
-            config.seed.wrapping_mul(0x9E37_79B9).wrapping_add(i as u64),
-        ),
+        TrainEstimator::Kf => {
+            let mut source = StateSource::kf(
+                robot,
+                SensorNoise::default(),
+                config.seed.wrapping_mul(0x9E37_79B9).wrapping_add(i as u64),
+            );
+            if let StateSource::Kf { kf, .. } = &mut source {
+                config.kf.apply(kf);
+            }
+            source
+        }
     };
     Ok(match config.task {
         TaskKind::ModelFree => {

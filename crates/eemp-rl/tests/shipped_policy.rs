@@ -77,6 +77,14 @@ fn the_shipped_robust_model_free_policy_walks_5_s_at_0_5_m_per_s_on_the_filter()
         eemp_sim::sensors::SensorNoise::default(),
         1,
     );
+    // The filter it was trained on (its config's [kf]).
+    let trained: eemp_rl::config::TrainConfig =
+        eemp_core::config_error::load_toml(&repo_file("policies/a1_model_free_robust.toml"))
+            .unwrap();
+    if let eemp_sim::closed_loop::StateSource::Kf { kf, .. } = &mut spec.state_source {
+        trained.kf.apply(kf);
+        assert_eq!((kf.velocity_jump_mps, kf.leg_outlier_mps), (0.0, 0.0));
+    }
     let run = run_walk_with(&robot, &spec, &start, &mut c, |_| {}).unwrap();
     assert_walked(&run, 0.1, 1.2);
     assert_eq!(c.invalid_steps, 0);

@@ -1,6 +1,6 @@
 //! Closed-loop walks under EEMP: one per gait, the paper's key behaviours, determinism.
 
-use eemp_core::planner::{Gait, PlannerConfig, PlannerParams, VelocityCommand};
+use eemp_core::planner::{FreePairing, Gait, PlannerConfig, PlannerParams, VelocityCommand};
 use eemp_core::robot::RobotConfig;
 use eemp_sim::walk::{run_walk, WalkRun, WalkSpec};
 
@@ -212,40 +212,70 @@ fn the_shipped_lookup_tables_load_and_walk_at_half_a_metre_per_second() {
 #[test]
 fn eemp_analytical_walks_0_to_1_to_0_m_per_s_on_the_estimator_with_gait_changes() {
     // The free gait with its table (EEMP-Analytical) on the shipped profile, on the Kalman
-    // filter with default sensor noise: no fall, and its swings change as the speed does.
+    // filter with default sensor noise: no fall, and its swings change as the speed does (their
+    // duration follows the table; with the earlier swing rule also lone legs and pairs).
     use eemp_core::planner::params_table::ParamsTable;
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
     let robot = RobotConfig::a1();
-    let mut s = spec(Gait::Free, 0.0, 20.0, PlannerParams::default());
-    s.params_table = Some(ParamsTable::load(&root.join("tables/a1_free.toml")).unwrap());
-    s.profile =
-        eemp_core::config_error::load_toml(&root.join("profiles/up-and-down.toml")).unwrap();
-    s.seed = 2;
-    s.state_source = eemp_sim::closed_loop::StateSource::kf(
-        &robot,
-        eemp_sim::sensors::SensorNoise::default(),
-        2,
-    );
-    // Legs lifting together at each swing start: 1 (single-leg swings) or 2 (pairs).
-    let (mut singles, mut pairs, mut prev) = (0usize, 0usize, [true; 4]);
-    let run = run_walk(&robot, &s, |r| {
-        let stance = r.plan.map(|p| p.stance.0).unwrap_or([true; 4]);
-        let lifted = (0..4).filter(|&i| prev[i] && !stance[i]).count();
-        match lifted {
-            1 => singles += 1,
-            2 => pairs += 1,
-            _ => {}
+    let run = |pairing: FreePairing| {
+        let mut s = spec(Gait::Free, 0.0, 20.0, PlannerParams::default());
+        s.params_table = Some(ParamsTable::load(&root.join("tables/a1_free.toml")).unwrap());
+        s.profile =
+            eemp_core::config_error::load_toml(&root.join("profiles/up-and-down.toml")).unwrap();
+        s.seed = 2;
+        s.planner.free_pairing = pairing;
+        s.state_source = eemp_sim::closed_loop::StateSource::kf(
+            &robot,
+            eemp_sim::sensors::SensorNoise::default(),
+            2,
+        );
+        // Legs lifting together at each swing start: 1 (lone legs) or 2 (pairs); and each
+        // swing's duration, ms.
+        let (mut singles, mut pairs, mut prev) = (0usize, 0usize, [true; 4]);
+        let mut lifted_at = [None::<f64>; 4];
+        let mut durations_ms = std::collections::BTreeSet::new();
+        let walk = run_walk(&robot, &s, |r| {
+            let stance = r.plan.map(|p| p.stance.0).unwrap_or([true; 4]);
+            let lifted = (0..4).filter(|&i| prev[i] && !stance[i]).count();
+            match lifted {
+                1 => singles += 1,
+                2 => pairs += 1,
+                _ => {}
+            }
+            for i in 0..4 {
+                match (prev[i], stance[i]) {
+                    (true, false) => lifted_at[i] = Some(r.state.time_s),
+                    (false, true) => {
+                        if let Some(t0) = lifted_at[i].take() {
+                            durations_ms.insert(((r.state.time_s - t0) * 1000.0).round() as i64);
+                        }
+                    }
+                    _ => {}
+                }
+            }
+            prev = stance;
+        })
+        .unwrap();
+        (walk, singles, pairs, durations_ms)
+    };
+    for pairing in [FreePairing::default(), FreePairing::UNPAIRED] {
+        let (walk, singles, pairs, durations) = run(pairing);
+        assert!(!walk.stats.fell, "fell at {:?}", walk.stats.fell_at_s);
+        let rmse = walk.metrics.vel_rmse_mps.unwrap();
+        assert!(rmse < 0.15, "velocity RMSE {rmse} m/s over the profile");
+        assert!(
+            durations.len() >= 2,
+            "swing durations {durations:?} ms: the table's entries did not change"
+        );
+        if pairing == FreePairing::UNPAIRED {
+            assert!(
+                singles > 5 && pairs > 5,
+                "single-leg swings {singles}, pair swings {pairs}"
+            );
+        } else {
+            assert!(pairs > 5, "pair swings {pairs}");
         }
-        prev = stance;
-    })
-    .unwrap();
-    assert!(!run.stats.fell, "fell at {:?}", run.stats.fell_at_s);
-    let rmse = run.metrics.vel_rmse_mps.unwrap();
-    assert!(rmse < 0.15, "velocity RMSE {rmse} m/s over the profile");
-    assert!(
-        singles > 5 && pairs > 5,
-        "single-leg swings {singles}, pair swings {pairs}"
-    );
+    }
 }
 
 #[test]
@@ -259,6 +289,9 @@ fn on_a_floor_less_grippy_than_the_mpc_assumes_slips_lower_its_friction_and_the_
         s.seed = 1;
         s.floor_friction = Some(friction);
         s.controller.slip.adapt_friction = adapt;
+        // The free gait's earlier swing rule, on which the adapter was measured (with the
+        // default pairing the free gait walks this floor without it: the next test).
+        s.planner.free_pairing = FreePairing::UNPAIRED;
         run_walk(&RobotConfig::a1(), &s, |_| {}).unwrap()
     };
     // On a 0.3 floor the MPC's 0.6 pyramid makes the stance feet slide and the trunk fall.
@@ -283,4 +316,33 @@ fn on_a_floor_less_grippy_than_the_mpc_assumes_slips_lower_its_friction_and_the_
     let (ca, cb) = (a.metrics.cot.unwrap(), b.metrics.cot.unwrap());
     assert!((ra - rb).abs() < 0.1 * rb, "RMSE {ra} vs {rb}");
     assert!((ca - cb).abs() < 0.05 * cb, "CoT {ca} vs {cb}");
+}
+
+#[test]
+fn the_free_gait_pairs_its_swings_and_walks_a_floor_of_friction_0_3_from_rest() {
+    use eemp_core::planner::params_table::ParamsTable;
+    let tables = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tables");
+    let table = ParamsTable::load(&tables.join("a1_free.toml")).unwrap();
+    let run = |pairing: FreePairing, seed: u64| {
+        let mut s = spec(Gait::Free, 0.3, 5.0, PlannerParams::default());
+        s.params_table = Some(table.clone());
+        s.seed = seed;
+        s.floor_friction = Some(0.3);
+        s.planner.free_pairing = pairing;
+        run_walk(&RobotConfig::a1(), &s, |_| {}).unwrap()
+    };
+    for seed in [1, 2, 3] {
+        // The earlier rule: the first foot over its edge swings alone, then its diagonal
+        // partner alone, and the trunk tips off the other pair at ≈ 1.8 s.
+        let unpaired = run(FreePairing::UNPAIRED, seed);
+        assert!(unpaired.stats.fell, "seed {seed}: the test cannot fail");
+        let paired = run(FreePairing::default(), seed);
+        assert!(
+            !paired.stats.fell,
+            "seed {seed}: fell at {:?}",
+            paired.stats.fell_at_s
+        );
+        let rmse = paired.metrics.vel_rmse_mps.unwrap();
+        assert!(rmse < 0.08, "seed {seed}: velocity RMSE {rmse} m/s");
+    }
 }

@@ -1,6 +1,7 @@
 //! Which legs swing when a stance foot leaves its ellipse.
 
 use crate::leg::{Leg, LegMap};
+use nalgebra::Vector2;
 use serde::{Deserialize, Serialize};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Hash)]
@@ -11,7 +12,8 @@ pub enum Gait {
     /// One leg at a time in the fixed order RL → FL → RR → FR (the lateral-sequence walk).
     Walk,
     /// No predetermined order: the legs outside their ellipses swing (a diagonal pair at most,
-    /// so two feet always support the body), never a leg that swung in the previous step.
+    /// so two feet always support the body), never a leg that swung in the previous step;
+    /// [`FreePairing`] says when a leg takes its diagonal partner along.
     Free,
 }
 
@@ -45,10 +47,77 @@ pub const WALK_ORDER: [Leg; 4] = [
     Leg::FrontRight,
 ];
 
-/// Chooses the legs of the next swing. `ellipse_values` are eq. (5)'s left-hand sides of the
-/// stance feet (> 1 is outside); `previous` are the legs of the previous swing. Returns an empty
-/// set when no foot is outside (all four stay in stance).
-pub fn next_swing(gait: Gait, ellipse_values: &LegMap<f64>, previous: &[Leg]) -> Vec<Leg> {
+/// When the free gait swings a leg's diagonal partner with it (the paper leaves the free gait's
+/// choice open). Both rules target the same failure: a lone swing with the feet behind the hips
+/// (at the back of their ellipses) leaves the trunk ahead of the other three feet, it tips
+/// towards the swinging foot, and on a floor of friction 0.3 the loaded feet slide out (the
+/// free gait fell at 1.8 s there on ground truth, every seed, with neither rule).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct FreePairing {
+    /// The partner goes along when its eq. (5) value is above 1 − this, i.e. it is near its
+    /// own edge and would leave within a fraction of a step (0: only when it is outside, the
+    /// earlier rule). From a standing start all four feet reach their edges within a
+    /// millimetre, and the first foot over alone set the gait out of its diagonal rhythm.
+    pub pair_tolerance: f64,
+    /// The partner goes along, even one that swung in the previous step, when a lone swing
+    /// would leave the trunk's ground projection less than this inside the triangle of the
+    /// other three feet, m (negative: outside by up to that much is accepted).
+    pub support_margin_m: f64,
+    /// Whether the support rule applies at all.
+    pub support_check: bool,
+}
+
+impl Default for FreePairing {
+    fn default() -> Self {
+        FreePairing {
+            pair_tolerance: 0.5,
+            support_margin_m: 0.0,
+            support_check: true,
+        }
+    }
+}
+
+impl FreePairing {
+    /// The free gait before these rules (a partner only when it is outside its ellipse too).
+    pub const UNPAIRED: FreePairing = FreePairing {
+        pair_tolerance: 0.0,
+        support_margin_m: 0.0,
+        support_check: false,
+    };
+}
+
+/// Signed distance of `point` inside the triangle `tri` (negative outside: the distance to the
+/// nearest edge's line), m; either winding.
+pub fn triangle_margin(point: &Vector2<f64>, tri: [Vector2<f64>; 3]) -> f64 {
+    let winding = (tri[1] - tri[0]).perp(&(tri[2] - tri[0])).signum();
+    (0..3)
+        .map(|i| {
+            let (a, b) = (tri[i], tri[(i + 1) % 3]);
+            let edge = b - a;
+            winding * edge.perp(&(point - a)) / edge.norm().max(1e-9)
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// What the swing choice reads: eq. (5)'s left-hand sides of the stance feet (> 1 is outside),
+/// and for each leg how far inside the other three feet's triangle the trunk would be if that
+/// leg swung alone (see [`triangle_margin`]).
+#[derive(Clone, Copy, Debug)]
+pub struct SwingInputs<'a> {
+    pub ellipse_values: &'a LegMap<f64>,
+    pub lone_swing_margin_m: &'a LegMap<f64>,
+}
+
+/// Chooses the legs of the next swing; `previous` are the legs of the previous swing. Returns an
+/// empty set when no foot is outside (all four stay in stance).
+pub fn next_swing(
+    gait: Gait,
+    inputs: SwingInputs,
+    previous: &[Leg],
+    pairing: &FreePairing,
+) -> Vec<Leg> {
+    let ellipse_values = inputs.ellipse_values;
     let outside: Vec<Leg> = Leg::ALL
         .into_iter()
         .filter(|l| ellipse_values[*l] > 1.0)
@@ -84,8 +153,13 @@ pub fn next_swing(gait: Gait, ellipse_values: &LegMap<f64>, previous: &[Leg]) ->
                 return Vec::new();
             }
             let leg = most_outside(&candidates, ellipse_values);
-            if candidates.contains(&leg.diagonal()) {
-                vec![leg, leg.diagonal()]
+            let partner = leg.diagonal();
+            let partner_near = !previous.contains(&partner)
+                && ellipse_values[partner] > 1.0 - pairing.pair_tolerance;
+            let unsupported_alone =
+                pairing.support_check && inputs.lone_swing_margin_m[leg] < pairing.support_margin_m;
+            if partner_near || unsupported_alone {
+                vec![leg, partner]
             } else {
                 vec![leg]
             }
@@ -118,6 +192,35 @@ mod tests {
 
     fn values(outside: &[Leg]) -> LegMap<f64> {
         LegMap::from_fn(|l| if outside.contains(&l) { 1.5 } else { 0.5 })
+    }
+
+    /// The choice with every lone swing well supported and the earlier free-gait rule.
+    fn next_swing(gait: Gait, values: &LegMap<f64>, previous: &[Leg]) -> Vec<Leg> {
+        next_swing_with(
+            gait,
+            values,
+            &LegMap::splat(1.0),
+            previous,
+            &FreePairing::UNPAIRED,
+        )
+    }
+
+    fn next_swing_with(
+        gait: Gait,
+        values: &LegMap<f64>,
+        margins: &LegMap<f64>,
+        previous: &[Leg],
+        pairing: &FreePairing,
+    ) -> Vec<Leg> {
+        super::next_swing(
+            gait,
+            SwingInputs {
+                ellipse_values: values,
+                lone_swing_margin_m: margins,
+            },
+            previous,
+            pairing,
+        )
     }
 
     #[test]
@@ -183,5 +286,76 @@ mod tests {
             vec![Leg::FrontLeft],
             "FL's diagonal RR is inside: FL swings alone"
         );
+    }
+
+    #[test]
+    fn free_takes_a_partner_near_its_edge_along() {
+        let pairing = FreePairing::default();
+        let supported = LegMap::splat(1.0);
+        // FL just over its edge, its partner RR at 0.6 (above 1 - 0.5): both go.
+        let v = LegMap([0.2, 1.01, 0.6, 0.3]);
+        assert_eq!(
+            next_swing_with(Gait::Free, &v, &supported, &[], &pairing),
+            vec![Leg::FrontLeft, Leg::RearRight]
+        );
+        // RR at 0.4 is not near: FL alone (and alone under the earlier rule at 0.6 too).
+        let v = LegMap([0.2, 1.01, 0.4, 0.3]);
+        assert_eq!(
+            next_swing_with(Gait::Free, &v, &supported, &[], &pairing),
+            vec![Leg::FrontLeft]
+        );
+        let v = LegMap([0.2, 1.01, 0.6, 0.3]);
+        assert_eq!(next_swing(Gait::Free, &v, &[]), vec![Leg::FrontLeft]);
+        // A partner that swung in the previous step is not taken for being near.
+        assert_eq!(
+            next_swing_with(Gait::Free, &v, &supported, &[Leg::RearRight], &pairing),
+            vec![Leg::FrontLeft]
+        );
+    }
+
+    #[test]
+    fn free_pairs_a_lone_swing_that_would_leave_the_trunk_unsupported() {
+        let pairing = FreePairing::default();
+        let v = LegMap([1.2, 0.3, 0.2, 0.1]);
+        // FR alone would leave the trunk 3 cm outside FL-RR-RL: RL goes too, although it
+        // swung in the previous step.
+        let margins = LegMap([-0.03, 0.04, 0.04, 0.04]);
+        assert_eq!(
+            next_swing_with(Gait::Free, &v, &margins, &[Leg::RearLeft], &pairing),
+            vec![Leg::FrontRight, Leg::RearLeft]
+        );
+        // 1 cm inside is enough at the default margin of 0; off, FR goes alone.
+        let margins = LegMap([0.01, 0.04, 0.04, 0.04]);
+        assert_eq!(
+            next_swing_with(Gait::Free, &v, &margins, &[Leg::RearLeft], &pairing),
+            vec![Leg::FrontRight]
+        );
+        let margins = LegMap([-0.03, 0.04, 0.04, 0.04]);
+        let off = FreePairing {
+            support_check: false,
+            ..pairing
+        };
+        assert_eq!(
+            next_swing_with(Gait::Free, &v, &margins, &[Leg::RearLeft], &off),
+            vec![Leg::FrontRight]
+        );
+    }
+
+    #[test]
+    fn triangle_margin_is_the_distance_to_the_nearest_edge() {
+        // Right triangle (0,0) (1,0) (0,1), either winding.
+        let tri = [
+            Vector2::new(0.0, 0.0),
+            Vector2::new(1.0, 0.0),
+            Vector2::new(0.0, 1.0),
+        ];
+        let rev = [tri[2], tri[1], tri[0]];
+        for t in [tri, rev] {
+            assert!((triangle_margin(&Vector2::new(0.2, 0.1), t) - 0.1).abs() < 1e-12);
+            assert!((triangle_margin(&Vector2::new(-0.3, 0.5), t) + 0.3).abs() < 1e-12);
+            // Beyond the hypotenuse x + y = 1 by 0.2·√2 / 2.
+            let d = triangle_margin(&Vector2::new(0.6, 0.6), t);
+            assert!((d + 0.2 / 2f64.sqrt()).abs() < 1e-12, "{d}");
+        }
     }
 }

@@ -20,7 +20,7 @@ use crate::controller::Plan;
 use crate::kinematics::LegKinematics;
 use crate::leg::{Leg, LegMap};
 use crate::leg_control::FootReference;
-pub use gait::Gait;
+pub use gait::{FreePairing, Gait};
 use nalgebra::{Rotation3, Vector2, Vector3};
 pub use params::PlannerParams;
 use serde::{Deserialize, Serialize};
@@ -59,6 +59,9 @@ pub struct PlannerConfig {
     /// the trunk tips over the support line: Table II free gait at 0.3 m/s tracked to
     /// 0.139 m/s RMSE without preview and 0.029 with it (the README's walking table).
     pub preview_swings: bool,
+    /// When the free gait swings a leg's diagonal partner with it (see [`FreePairing`]); the
+    /// trot and the walk ignore it.
+    pub free_pairing: FreePairing,
 }
 
 impl Default for PlannerConfig {
@@ -69,6 +72,7 @@ impl Default for PlannerConfig {
             max_accel_mps2: 0.5,
             retarget_swing: true,
             preview_swings: true,
+            free_pairing: FreePairing::default(),
         }
     }
 }
@@ -77,7 +81,19 @@ impl PlannerConfig {
     pub fn validate(&self) -> Result<(), ConfigError> {
         let [lo, hi] = PROGRESS_FACTOR_RANGE;
         check_range("planner.progress_factor", self.progress_factor, lo, hi)?;
-        check_range("planner.max_accel_mps2", self.max_accel_mps2, 0.05, 20.0)
+        check_range("planner.max_accel_mps2", self.max_accel_mps2, 0.05, 20.0)?;
+        check_range(
+            "planner.free_pairing.pair_tolerance",
+            self.free_pairing.pair_tolerance,
+            0.0,
+            1.0,
+        )?;
+        check_range(
+            "planner.free_pairing.support_margin_m",
+            self.free_pairing.support_margin_m,
+            -0.2,
+            0.2,
+        )
     }
 }
 
@@ -324,7 +340,8 @@ impl EemPlanner {
                         params.ellipse_ry_m,
                     )
                 });
-                let legs = gait::next_swing(self.config.gait, &values, &previous);
+                let trunk = body.p_world + v_ref_world * (tk - t);
+                let legs = self.choose_swing(&values, &previous, &trunk, &feet);
                 let end = tk + params.swing_time_s;
                 // Eq. (6) with the trunk on command: only the feed-forward term.
                 let prog = heading
@@ -363,7 +380,38 @@ impl EemPlanner {
             return Vec::new();
         }
         let values = self.ellipse_values(state, feet_world, params);
-        gait::next_swing(self.config.gait, &values, &self.previous_legs)
+        self.choose_swing(
+            &values,
+            &self.previous_legs,
+            &state.body.p_world,
+            feet_world,
+        )
+    }
+
+    /// The gait rule's choice, given where the trunk and the feet are (world frame; the support
+    /// check uses the trunk's origin, not the centre of mass the MPC's model offsets from it).
+    fn choose_swing(
+        &self,
+        values: &LegMap<f64>,
+        previous: &[Leg],
+        p_trunk_world: &Vector3<f64>,
+        feet_world: &LegMap<Vector3<f64>>,
+    ) -> Vec<Leg> {
+        let xy = |v: &Vector3<f64>| Vector2::new(v.x, v.y);
+        let lone_swing_margin_m = LegMap::from_fn(|leg| {
+            let mut others = Leg::ALL.into_iter().filter(|l| *l != leg);
+            let mut next = || xy(&feet_world[others.next().expect("three other legs")]);
+            gait::triangle_margin(&xy(p_trunk_world), [next(), next(), next()])
+        });
+        gait::next_swing(
+            self.config.gait,
+            gait::SwingInputs {
+                ellipse_values: values,
+                lone_swing_margin_m: &lone_swing_margin_m,
+            },
+            previous,
+            &self.config.free_pairing,
+        )
     }
 
     /// Moves the touchdown point of every running swing to where eq. (6) puts it now: the

@@ -25,7 +25,7 @@ use eemp_core::kinematics::LegKinematics;
 use eemp_core::leg::{Leg, LegMap};
 use eemp_core::metrics::{cost_of_transport_dimensionless, force_manipulability, positive_power_w};
 use eemp_core::planner::params::table_i;
-use eemp_core::planner::{Gait, PlannerConfig, PlannerParams, VelocityCommand};
+use eemp_core::planner::{FreePairing, Gait, PlannerConfig, PlannerParams, VelocityCommand};
 use eemp_core::robot::RobotConfig;
 use eemp_sim::closed_loop::{ClosedLoop, FallLimits};
 use eemp_sim::walk::{eemp_controller, reset_to_start, StartPose, WalkSpec};
@@ -130,6 +130,10 @@ pub struct EempRlConfig {
     /// the 450 k policy fell in 0 to 6 of the comparison's 30 runs depending on the floor,
     /// against 1 without; the 700 k policy at floor 0.1 in 4, against 0).
     pub adapt_friction: bool,
+    /// When the free gait swings a diagonal partner along (`eemp_core::planner::FreePairing`).
+    /// The earlier rule (`FreePairing::UNPAIRED`) by default: the shipped policy was trained
+    /// with it, and a policy runs with the controller it was trained with.
+    pub free_pairing: FreePairing,
 }
 
 impl Default for EempRlConfig {
@@ -142,6 +146,7 @@ impl Default for EempRlConfig {
             rewards: EempRlRewards::default(),
             cot_clip: 1.5,
             adapt_friction: false,
+            free_pairing: FreePairing::UNPAIRED,
         }
     }
 }
@@ -183,6 +188,7 @@ pub fn walk_spec(config: &EempRlConfig, params: PlannerParams) -> WalkSpec {
     let mut spec = WalkSpec::constant(
         PlannerConfig {
             gait: Gait::Free,
+            free_pairing: config.free_pairing,
             ..Default::default()
         },
         params,
