@@ -36,13 +36,17 @@ impl StateSourceArgs {
         let mut source = state_source(&self.estimator, self.ideal_sensors, self.seed, robot)?;
         with_kf_options(
             &mut source,
-            &KfOptions {
-                velocity_jump_mps: self.kf_velocity_jump,
-                leg_outlier_mps: self.kf_leg_outlier,
-            },
+            &self.kf_options(),
             ["--kf-velocity-jump", "--kf-leg-outlier"],
         )?;
         Ok(source)
+    }
+
+    pub fn kf_options(&self) -> KfOptions {
+        KfOptions {
+            velocity_jump_mps: self.kf_velocity_jump,
+            leg_outlier_mps: self.kf_leg_outlier,
+        }
     }
 }
 
@@ -107,5 +111,26 @@ pub fn state_source(
         other => Err(format!(
             "unknown --estimator '{other}': allowed ground-truth, kf"
         )),
+    }
+}
+
+/// A policy trained on the filter runs on the filter it was trained on (its config's `[kf]`),
+/// for each setting `options` leaves unset.
+pub fn adopt_policy_filter(
+    source: &mut StateSource,
+    policy: &eemp_rl::policy::Policy,
+    options: &KfOptions,
+) {
+    if policy.config.estimator != eemp_rl::config::TrainEstimator::Kf {
+        return;
+    }
+    if let StateSource::Kf { kf, .. } = source {
+        let trained = policy.config.kf;
+        if options.velocity_jump_mps.is_none() {
+            kf.velocity_jump_mps = trained.velocity_jump_mps;
+        }
+        if options.leg_outlier_mps.is_none() {
+            kf.leg_outlier_mps = trained.leg_outlier_mps;
+        }
     }
 }

@@ -7,7 +7,7 @@
 //! drops; runs with a row are not run again. `eemp compare` and `eemp robustness` are this
 //! runner with their own configs and reports.
 
-use crate::state_source_arg::KfOptions;
+use crate::state_source_arg::{adopt_policy_filter, KfOptions};
 use eemp_core::planner::params_table::ParamsTable;
 use eemp_core::planner::{FreePairing, Gait, PlannerConfig, PlannerParams, VelocityCommand};
 use eemp_core::robot::RobotConfig;
@@ -67,14 +67,18 @@ impl MethodConfig {
         self.estimator.as_deref().unwrap_or(&suite.estimator)
     }
 
+    fn kf_options(&self) -> KfOptions {
+        KfOptions {
+            velocity_jump_mps: self.kf_velocity_jump_mps,
+            leg_outlier_mps: self.kf_leg_outlier_mps,
+        }
+    }
+
     /// Applies the method's filter settings to `source`.
     fn apply_kf_options(&self, source: &mut StateSource) -> Result<(), String> {
         crate::state_source_arg::with_kf_options(
             source,
-            &KfOptions {
-                velocity_jump_mps: self.kf_velocity_jump_mps,
-                leg_outlier_mps: self.kf_leg_outlier_mps,
-            },
+            &self.kf_options(),
             [
                 &format!("method '{}': kf_velocity_jump_mps", self.name),
                 &format!("method '{}': kf_leg_outlier_mps", self.name),
@@ -246,6 +250,12 @@ impl SuiteConfig {
                         .clone()
                         .unwrap_or_else(|| format!("tables/a1_{g}.toml").into());
                     ParamsTable::load(&t).map_err(|e| format!("method '{}': {e}", m.name))?;
+                    if m.free_pairing.is_some() && g != Gait::Free {
+                        return Err(format!(
+                            "method '{}': free_pairing is for gait free, not {g}",
+                            m.name
+                        ));
+                    }
                     PlannerConfig {
                         gait: g,
                         free_pairing: m.free_pairing.unwrap_or_default(),
@@ -410,6 +420,7 @@ pub fn simulate(
                 m.policy.as_ref().ok_or("no policy")?,
                 Some(TaskKind::EempRl),
             )?;
+            adopt_policy_filter(&mut spec.state_source, &p, &m.kf_options());
             let cfg = p.config.eemp_rl.clone();
             let start = EempRlController::<Policy>::start_pose(robot, &cfg)?;
             let mut c = EempRlController::new(robot, cfg, p)?;
@@ -418,6 +429,7 @@ pub fn simulate(
         k => {
             let task: TaskKind = k.parse()?;
             let p = Policy::load(m.policy.as_ref().ok_or("no policy")?, Some(task))?;
+            adopt_policy_filter(&mut spec.state_source, &p, &m.kf_options());
             let mut c = PolicyController::new(p, robot, robot.simulation.timestep_s)?;
             let start = StartPose::from_joints(robot, c.default_pose());
             run_walk_with(robot, &spec, &start, &mut c, |_| {})

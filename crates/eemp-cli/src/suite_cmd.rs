@@ -605,14 +605,14 @@ pub fn robustness(args: &SuiteArgs) -> Result<(), String> {
                     &a.table,
                     &a.policy,
                     a.adapt_friction,
-                    a.free_pairing,
+                    a.free_pairing.unwrap_or_default(),
                 ) == (
                     &b.kind,
                     &b.gait,
                     &b.table,
                     &b.policy,
                     b.adapt_friction,
-                    b.free_pairing,
+                    b.free_pairing.unwrap_or_default(),
                 )
         })
         .collect();

@@ -155,6 +155,17 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
             ))
         }
     };
+    let free_flags = args.free_unpaired
+        || args.free_pair_tolerance.is_some()
+        || args.free_support_margin.is_some();
+    if free_flags && (args.controller != "eemp" || gait != Gait::Free) {
+        return Err(format!(
+            "--free-unpaired, --free-pair-tolerance and --free-support-margin are for \
+             --controller eemp --gait free, not --controller {} --gait {gait} (EEMP-RL runs \
+             the rule it was trained with)",
+            args.controller
+        ));
+    }
     if args.adapt_friction && args.controller != "eemp" {
         return Err(format!(
             "--adapt-friction is for --controller eemp, not {} (a policy runs with the \
@@ -228,6 +239,13 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
     spec.controller.slip.adapt_friction = args.adapt_friction;
     spec.seed = args.sensing.seed;
     spec.state_source = args.sensing.source(&robot)?;
+    if let Driver::Policy(p) = &driver {
+        crate::state_source_arg::adopt_policy_filter(
+            &mut spec.state_source,
+            p,
+            &args.sensing.kf_options(),
+        );
+    }
     spec.floor_friction = args.friction;
     let scenario = match &args.scenario {
         Some(p) => Some(eemp_sim::scenario::Scenario::load(p).map_err(|e| e.to_string())?),
@@ -440,7 +458,13 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
         "retarget_swing": args.retarget_swing,
         "max_accel_mps2": args.max_accel,
         "preview_swings": args.preview_swings,
-        "free_pairing": spec.planner.free_pairing,
+        // What the free gait's planner used (EEMP-RL keeps its training's, in the policy file).
+        "free_pairing": (args.controller == "eemp" && gait == Gait::Free)
+            .then_some(spec.planner.free_pairing),
+        "kf": match &spec.state_source {
+            eemp_sim::closed_loop::StateSource::Kf { kf, .. } => Some(kf),
+            _ => None,
+        },
         "duration_s": st.sim_time_s,
         "metrics_window_s": [spec.metrics_start_s, st.sim_time_s],
         "fell": st.fell,

@@ -156,6 +156,12 @@ fn bad_suite_configs_are_refused_naming_the_value() {
     c.methods[0].kf_velocity_jump_mps = Some(0.15);
     assert!(c.validate().unwrap_err().contains("needs the kf estimator"));
     let mut c = config();
+    c.methods[0].free_pairing = Some(FreePairing::UNPAIRED);
+    let e = c.validate().unwrap_err();
+    assert!(e.contains("free_pairing is for gait free, not trot"), "{e}");
+    let mut c = config();
+    c.methods[0].gait = Some("free".into());
+    c.methods[0].table = Some(repo("tables/a1_free.toml"));
     c.methods[0].free_pairing = Some(FreePairing {
         pair_tolerance: 1.5,
         ..Default::default()

@@ -215,23 +215,16 @@ pub enum TrainEstimator {
 }
 
 /// The settings of the filter a policy trains on that have changed since policies were first
-/// trained on it: a policy is evaluated on the filter it was trained on (the shipped robust
-/// model-free policy was trained before the jump test and the leg-outlier gate were on).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+/// trained on it; a policy trained on the filter is evaluated on the same (`eemp walk`, the
+/// suites). The default is the filter of the first policies (jump test and leg-outlier gate
+/// off), so that a policy file written before this setting existed reads as what it was
+/// trained on; `[kf] velocity_jump_mps = 0.15, leg_outlier_mps = 0.15` trains on the
+/// filter's current defaults.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct TrainKf {
     pub velocity_jump_mps: f64,
     pub leg_outlier_mps: f64,
-}
-
-impl Default for TrainKf {
-    fn default() -> Self {
-        let kf = eemp_core::estimator::KfConfig::default();
-        TrainKf {
-            velocity_jump_mps: kf.velocity_jump_mps,
-            leg_outlier_mps: kf.leg_outlier_mps,
-        }
-    }
 }
 
 impl TrainKf {

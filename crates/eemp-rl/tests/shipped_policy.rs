@@ -68,6 +68,7 @@ fn the_shipped_robust_model_free_policy_walks_5_s_at_0_5_m_per_s_on_the_filter()
     .unwrap();
     assert_eq!(policy.config.estimator, eemp_rl::config::TrainEstimator::Kf);
     assert!(policy.config.model_free.pushes.every_s > 0.0);
+    let trained_kf = policy.config.kf;
     let mut c = PolicyController::new(policy, &robot, robot.simulation.timestep_s).unwrap();
     let start = StartPose::from_joints(&robot, c.default_pose());
     let mut spec = walk_spec(0.5, 5.0);
@@ -77,12 +78,14 @@ fn the_shipped_robust_model_free_policy_walks_5_s_at_0_5_m_per_s_on_the_filter()
         eemp_sim::sensors::SensorNoise::default(),
         1,
     );
-    // The filter it was trained on (its config's [kf]).
+    // The filter it was trained on: its file's config (written before `[kf]` existed, so read
+    // as the earlier filter) says the same as its training config's `[kf]`.
     let trained: eemp_rl::config::TrainConfig =
         eemp_core::config_error::load_toml(&repo_file("policies/a1_model_free_robust.toml"))
             .unwrap();
+    assert_eq!(trained_kf, trained.kf);
     if let eemp_sim::closed_loop::StateSource::Kf { kf, .. } = &mut spec.state_source {
-        trained.kf.apply(kf);
+        trained_kf.apply(kf);
         assert_eq!((kf.velocity_jump_mps, kf.leg_outlier_mps), (0.0, 0.0));
     }
     let run = run_walk_with(&robot, &spec, &start, &mut c, |_| {}).unwrap();

@@ -11,9 +11,10 @@ pub enum Gait {
     Trot,
     /// One leg at a time in the fixed order RL → FL → RR → FR (the lateral-sequence walk).
     Walk,
-    /// No predetermined order: the legs outside their ellipses swing (a diagonal pair at most,
-    /// so two feet always support the body), never a leg that swung in the previous step;
-    /// [`FreePairing`] says when a leg takes its diagonal partner along.
+    /// No predetermined order: a leg outside its ellipse swings (never one that swung in the
+    /// previous step), alone or with its diagonal partner (a diagonal pair at most, so two feet
+    /// always support the body); [`FreePairing`] says when the partner goes along, which may
+    /// be a partner inside its ellipse or one of the previous step.
     Free,
 }
 
@@ -78,7 +79,26 @@ impl Default for FreePairing {
     }
 }
 
+/// Lone-swing margins within this of `support_margin_m` count as at it, m: in a symmetric
+/// stance the trunk lies on both diagonals and every margin is 0 up to rounding.
+const MARGIN_TOLERANCE_M: f64 = 1e-6;
+
 impl FreePairing {
+    pub fn validate(&self, prefix: &str) -> Result<(), crate::config_error::ConfigError> {
+        crate::config_error::check_range(
+            &format!("{prefix}.pair_tolerance"),
+            self.pair_tolerance,
+            0.0,
+            1.0,
+        )?;
+        crate::config_error::check_range(
+            &format!("{prefix}.support_margin_m"),
+            self.support_margin_m,
+            -0.2,
+            0.2,
+        )
+    }
+
     /// The free gait before these rules (a partner only when it is outside its ellipse too).
     pub const UNPAIRED: FreePairing = FreePairing {
         pair_tolerance: 0.0,
@@ -97,7 +117,14 @@ pub fn triangle_margin(point: &Vector2<f64>, tri: [Vector2<f64>; 3]) -> f64 {
             let edge = b - a;
             winding * edge.perp(&(point - a)) / edge.norm().max(1e-9)
         })
-        .fold(f64::INFINITY, f64::min)
+        // NaN in, NaN out (f64::min would drop it).
+        .fold(f64::INFINITY, |a, b| {
+            if a.is_nan() || b.is_nan() {
+                f64::NAN
+            } else {
+                a.min(b)
+            }
+        })
 }
 
 /// What the swing choice reads: eq. (5)'s left-hand sides of the stance feet (> 1 is outside),
@@ -156,8 +183,10 @@ pub fn next_swing(
             let partner = leg.diagonal();
             let partner_near = !previous.contains(&partner)
                 && ellipse_values[partner] > 1.0 - pairing.pair_tolerance;
-            let unsupported_alone =
-                pairing.support_check && inputs.lone_swing_margin_m[leg] < pairing.support_margin_m;
+            // A margin that is not a number (a NaN foot position) counts as unsupported.
+            let margin = inputs.lone_swing_margin_m[leg];
+            let unsupported_alone = pairing.support_check
+                && (margin.is_nan() || margin < pairing.support_margin_m - MARGIN_TOLERANCE_M);
             if partner_near || unsupported_alone {
                 vec![leg, partner]
             } else {
@@ -330,6 +359,18 @@ mod tests {
             next_swing_with(Gait::Free, &v, &margins, &[Leg::RearLeft], &pairing),
             vec![Leg::FrontRight]
         );
+        // A symmetric stance puts the trunk on the diagonal: a margin of 0 up to rounding is
+        // at the default margin, not below it; a NaN margin (a NaN foot) is unsupported.
+        let margins = LegMap([-1e-12, 0.04, 0.04, 0.04]);
+        assert_eq!(
+            next_swing_with(Gait::Free, &v, &margins, &[Leg::RearLeft], &pairing),
+            vec![Leg::FrontRight]
+        );
+        let margins = LegMap([f64::NAN, 0.04, 0.04, 0.04]);
+        assert_eq!(
+            next_swing_with(Gait::Free, &v, &margins, &[Leg::RearLeft], &pairing),
+            vec![Leg::FrontRight, Leg::RearLeft]
+        );
         let margins = LegMap([-0.03, 0.04, 0.04, 0.04]);
         let off = FreePairing {
             support_check: false,
@@ -356,6 +397,7 @@ mod tests {
             // Beyond the hypotenuse x + y = 1 by 0.2·√2 / 2.
             let d = triangle_margin(&Vector2::new(0.6, 0.6), t);
             assert!((d + 0.2 / 2f64.sqrt()).abs() < 1e-12, "{d}");
+            assert!(triangle_margin(&Vector2::new(f64::NAN, 0.1), t).is_nan());
         }
     }
 }

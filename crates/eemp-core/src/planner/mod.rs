@@ -82,18 +82,7 @@ impl PlannerConfig {
         let [lo, hi] = PROGRESS_FACTOR_RANGE;
         check_range("planner.progress_factor", self.progress_factor, lo, hi)?;
         check_range("planner.max_accel_mps2", self.max_accel_mps2, 0.05, 20.0)?;
-        check_range(
-            "planner.free_pairing.pair_tolerance",
-            self.free_pairing.pair_tolerance,
-            0.0,
-            1.0,
-        )?;
-        check_range(
-            "planner.free_pairing.support_margin_m",
-            self.free_pairing.support_margin_m,
-            -0.2,
-            0.2,
-        )
+        self.free_pairing.validate("planner.free_pairing")
     }
 }
 

@@ -168,6 +168,7 @@ impl EempRlConfig {
         check_range("eemp_rl.vx_mps[0]", self.vx_mps[0], 0.0, 1.5)?;
         check_range("eemp_rl.vx_mps[1]", self.vx_mps[1], self.vx_mps[0], 1.5)?;
         check_range("eemp_rl.command_every_s", self.command_every_s, 0.1, 3600.0)?;
+        self.free_pairing.validate("eemp_rl.free_pairing")?;
         for (n, w) in REWARD_TERMS.iter().zip([
             self.rewards.cot,
             self.rewards.manipulability,
