@@ -19,6 +19,19 @@ fn spec(gait: Gait, speed: f64, duration: f64, params: PlannerParams) -> WalkSpe
     )
 }
 
+/// EEMP-Analytical (the free gait with its table) at 0.3 m/s on a floor of `friction`.
+fn free_table_on_floor(duration: f64, seed: u64, friction: f64, pairing: FreePairing) -> WalkSpec {
+    let tables = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tables");
+    let mut s = spec(Gait::Free, 0.3, duration, PlannerParams::default());
+    s.params_table = Some(
+        eemp_core::planner::params_table::ParamsTable::load(&tables.join("a1_free.toml")).unwrap(),
+    );
+    s.seed = seed;
+    s.floor_friction = Some(friction);
+    s.planner.free_pairing = pairing;
+    s
+}
+
 fn walk(gait: Gait, speed: f64, duration: f64, params: PlannerParams) -> WalkRun {
     run_walk(
         &RobotConfig::a1(),
@@ -285,18 +298,11 @@ fn eemp_analytical_walks_0_to_1_to_0_m_per_s_on_the_estimator_with_gait_changes(
 
 #[test]
 fn on_a_floor_less_grippy_than_the_mpc_assumes_slips_lower_its_friction_and_the_free_gait_walks() {
-    use eemp_core::planner::params_table::ParamsTable;
-    let tables = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tables");
-    let table = ParamsTable::load(&tables.join("a1_free.toml")).unwrap();
     let run = |adapt: bool, friction: f64| {
-        let mut s = spec(Gait::Free, 0.3, 8.0, PlannerParams::default());
-        s.params_table = Some(table.clone());
-        s.seed = 1;
-        s.floor_friction = Some(friction);
-        s.controller.slip.adapt_friction = adapt;
         // The free gait's earlier swing rule, on which the adapter was measured (with the
         // default pairing the free gait walks this floor without it: the next test).
-        s.planner.free_pairing = FreePairing::UNPAIRED;
+        let mut s = free_table_on_floor(8.0, 1, friction, FreePairing::UNPAIRED);
+        s.controller.slip.adapt_friction = adapt;
         run_walk(&RobotConfig::a1(), &s, |_| {}).unwrap()
     };
     // On a 0.3 floor the MPC's 0.6 pyramid makes the stance feet slide and the trunk fall.
@@ -325,15 +331,8 @@ fn on_a_floor_less_grippy_than_the_mpc_assumes_slips_lower_its_friction_and_the_
 
 #[test]
 fn the_free_gait_pairs_its_swings_and_walks_a_floor_of_friction_0_3_from_rest() {
-    use eemp_core::planner::params_table::ParamsTable;
-    let tables = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tables");
-    let table = ParamsTable::load(&tables.join("a1_free.toml")).unwrap();
     let run = |pairing: FreePairing, seed: u64| {
-        let mut s = spec(Gait::Free, 0.3, 5.0, PlannerParams::default());
-        s.params_table = Some(table.clone());
-        s.seed = seed;
-        s.floor_friction = Some(0.3);
-        s.planner.free_pairing = pairing;
+        let s = free_table_on_floor(5.0, seed, 0.3, pairing);
         run_walk(&RobotConfig::a1(), &s, |_| {}).unwrap()
     };
     for seed in [1, 2, 3] {
