@@ -66,25 +66,22 @@ pub fn with_kf_options(
     names: [&str; 2],
 ) -> Result<(), String> {
     let given = [options.velocity_jump_mps, options.leg_outlier_mps];
-    match source {
-        StateSource::Kf { kf, .. } => {
-            // One option at a time, each checked by the filter's own range and reported under
-            // the option's name.
-            let setters: [fn(&mut KfConfig, f64); 2] = [
-                |kf, v| kf.velocity_jump_mps = v,
-                |kf, v| kf.leg_outlier_mps = v,
-            ];
-            for ((value, name), set) in given.into_iter().zip(names).zip(setters) {
-                if let Some(v) = value {
-                    set(kf, v);
-                    kf.validate().map_err(|e| format!("{name}: {e}"))?;
-                }
-            }
-        }
-        StateSource::GroundTruth => {
-            if let Some((name, v)) = names.iter().zip(given).find_map(|(n, v)| v.map(|v| (n, v))) {
-                return Err(format!("{name} {v} needs the kf estimator"));
-            }
+    let Some(kf) = source.kf_config_mut() else {
+        return match names.iter().zip(given).find_map(|(n, v)| v.map(|v| (n, v))) {
+            Some((name, v)) => Err(format!("{name} {v} needs the kf estimator")),
+            None => Ok(()),
+        };
+    };
+    // One option at a time, each checked by the filter's own range and reported under the
+    // option's name.
+    let setters: [fn(&mut KfConfig, f64); 2] = [
+        |kf, v| kf.velocity_jump_mps = v,
+        |kf, v| kf.leg_outlier_mps = v,
+    ];
+    for ((value, name), set) in given.into_iter().zip(names).zip(setters) {
+        if let Some(v) = value {
+            set(kf, v);
+            kf.validate().map_err(|e| format!("{name}: {e}"))?;
         }
     }
     Ok(())
@@ -115,7 +112,7 @@ pub fn state_source(
 }
 
 /// A policy trained on the filter runs on the filter it was trained on (its config's `[kf]`),
-/// for each setting `options` leaves unset.
+/// except for the settings `options` names.
 pub fn adopt_policy_filter(
     source: &mut StateSource,
     policy: &eemp_rl::policy::Policy,
@@ -124,13 +121,15 @@ pub fn adopt_policy_filter(
     if policy.config.estimator != eemp_rl::config::TrainEstimator::Kf {
         return;
     }
-    if let StateSource::Kf { kf, .. } = source {
-        let trained = policy.config.kf;
-        if options.velocity_jump_mps.is_none() {
-            kf.velocity_jump_mps = trained.velocity_jump_mps;
+    if let Some(kf) = source.kf_config_mut() {
+        let (jump, outlier) = (kf.velocity_jump_mps, kf.leg_outlier_mps);
+        policy.config.kf.apply(kf);
+        // What the options set (already applied and validated) stays.
+        if options.velocity_jump_mps.is_some() {
+            kf.velocity_jump_mps = jump;
         }
-        if options.leg_outlier_mps.is_none() {
-            kf.leg_outlier_mps = trained.leg_outlier_mps;
+        if options.leg_outlier_mps.is_some() {
+            kf.leg_outlier_mps = outlier;
         }
     }
 }

@@ -179,7 +179,7 @@ pub fn make_envs_with(
                 SensorNoise::default(),
                 config.seed.wrapping_mul(0x9E37_79B9).wrapping_add(i as u64),
             );
-            if let StateSource::Kf { kf, .. } = &mut source {
+            if let Some(kf) = source.kf_config_mut() {
                 config.kf.apply(kf);
             }
             source

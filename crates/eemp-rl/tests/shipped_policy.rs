@@ -84,7 +84,7 @@ fn the_shipped_robust_model_free_policy_walks_5_s_at_0_5_m_per_s_on_the_filter()
         eemp_core::config_error::load_toml(&repo_file("policies/a1_model_free_robust.toml"))
             .unwrap();
     assert_eq!(trained_kf, trained.kf);
-    if let eemp_sim::closed_loop::StateSource::Kf { kf, .. } = &mut spec.state_source {
+    if let Some(kf) = spec.state_source.kf_config_mut() {
         trained_kf.apply(kf);
         assert_eq!((kf.velocity_jump_mps, kf.leg_outlier_mps), (0.0, 0.0));
     }

@@ -117,6 +117,14 @@ impl StateSource {
         }
     }
 
+    /// The filter's settings, when the controller runs on the filter.
+    pub fn kf_config_mut(&mut self) -> Option<&mut KfConfig> {
+        match self {
+            StateSource::Kf { kf, .. } => Some(kf),
+            StateSource::GroundTruth => None,
+        }
+    }
+
     pub fn name(&self) -> &'static str {
         match self {
             StateSource::GroundTruth => "ground-truth",

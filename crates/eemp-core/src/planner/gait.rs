@@ -1,5 +1,6 @@
 //! Which legs swing when a stance foot leaves its ellipse.
 
+use crate::config_error::{check_range, ConfigError};
 use crate::leg::{Leg, LegMap};
 use nalgebra::Vector2;
 use serde::{Deserialize, Serialize};
@@ -84,14 +85,14 @@ impl Default for FreePairing {
 const MARGIN_TOLERANCE_M: f64 = 1e-6;
 
 impl FreePairing {
-    pub fn validate(&self, prefix: &str) -> Result<(), crate::config_error::ConfigError> {
-        crate::config_error::check_range(
+    pub fn validate(&self, prefix: &str) -> Result<(), ConfigError> {
+        check_range(
             &format!("{prefix}.pair_tolerance"),
             self.pair_tolerance,
             0.0,
             1.0,
         )?;
-        crate::config_error::check_range(
+        check_range(
             &format!("{prefix}.support_margin_m"),
             self.support_margin_m,
             -0.2,
@@ -128,12 +129,12 @@ pub fn triangle_margin(point: &Vector2<f64>, tri: [Vector2<f64>; 3]) -> f64 {
 }
 
 /// What the swing choice reads: eq. (5)'s left-hand sides of the stance feet (> 1 is outside),
-/// and for each leg how far inside the other three feet's triangle the trunk would be if that
-/// leg swung alone (see [`triangle_margin`]).
-#[derive(Clone, Copy, Debug)]
+/// and how far inside the other three feet's triangle the trunk would be if a leg swung alone
+/// (see [`triangle_margin`]; asked only by the free gait's support check, for the leg it picks).
+#[derive(Clone, Copy)]
 pub struct SwingInputs<'a> {
     pub ellipse_values: &'a LegMap<f64>,
-    pub lone_swing_margin_m: &'a LegMap<f64>,
+    pub lone_swing_margin_m: &'a dyn Fn(Leg) -> f64,
 }
 
 /// Chooses the legs of the next swing; `previous` are the legs of the previous swing. Returns an
@@ -184,9 +185,10 @@ pub fn next_swing(
             let partner_near = !previous.contains(&partner)
                 && ellipse_values[partner] > 1.0 - pairing.pair_tolerance;
             // A margin that is not a number (a NaN foot position) counts as unsupported.
-            let margin = inputs.lone_swing_margin_m[leg];
-            let unsupported_alone = pairing.support_check
-                && (margin.is_nan() || margin < pairing.support_margin_m - MARGIN_TOLERANCE_M);
+            let unsupported_alone = pairing.support_check && {
+                let margin = (inputs.lone_swing_margin_m)(leg);
+                margin.is_nan() || margin < pairing.support_margin_m - MARGIN_TOLERANCE_M
+            };
             if partner_near || unsupported_alone {
                 vec![leg, partner]
             } else {
@@ -245,7 +247,7 @@ mod tests {
             gait,
             SwingInputs {
                 ellipse_values: values,
-                lone_swing_margin_m: margins,
+                lone_swing_margin_m: &|leg| margins[leg],
             },
             previous,
             pairing,

@@ -387,11 +387,11 @@ impl EemPlanner {
         feet_world: &LegMap<Vector3<f64>>,
     ) -> Vec<Leg> {
         let xy = |v: &Vector3<f64>| Vector2::new(v.x, v.y);
-        let lone_swing_margin_m = LegMap::from_fn(|leg| {
+        let lone_swing_margin_m = |leg: Leg| {
             let mut others = Leg::ALL.into_iter().filter(|l| *l != leg);
             let mut next = || xy(&feet_world[others.next().expect("three other legs")]);
             gait::triangle_margin(&xy(p_trunk_world), [next(), next(), next()])
-        });
+        };
         gait::next_swing(
             self.config.gait,
             gait::SwingInputs {
