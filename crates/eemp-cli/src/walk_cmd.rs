@@ -461,10 +461,7 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
         // What the free gait's planner used (EEMP-RL keeps its training's, in the policy file).
         "free_pairing": (args.controller == "eemp" && gait == Gait::Free)
             .then_some(spec.planner.free_pairing),
-        "kf": match &spec.state_source {
-            eemp_sim::closed_loop::StateSource::Kf { kf, .. } => Some(kf),
-            _ => None,
-        },
+        "kf": spec.state_source.kf_config(),
         "duration_s": st.sim_time_s,
         "metrics_window_s": [spec.metrics_start_s, st.sim_time_s],
         "fell": st.fell,

@@ -118,6 +118,14 @@ impl StateSource {
     }
 
     /// The filter's settings, when the controller runs on the filter.
+    pub fn kf_config(&self) -> Option<&KfConfig> {
+        match self {
+            StateSource::Kf { kf, .. } => Some(kf),
+            StateSource::GroundTruth => None,
+        }
+    }
+
+    /// The filter's settings to change, when the controller runs on the filter.
     pub fn kf_config_mut(&mut self) -> Option<&mut KfConfig> {
         match self {
             StateSource::Kf { kf, .. } => Some(kf),
