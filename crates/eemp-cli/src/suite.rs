@@ -163,7 +163,7 @@ pub struct SuiteRun {
 }
 
 /// One row of `results.csv`.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct SuiteRow {
     pub run_id: String,
     pub method: String,
@@ -180,11 +180,45 @@ pub struct SuiteRow {
     pub wall_s: f64,
     /// Why the run could not be done (a bad file, a simulator error); not a result.
     pub error: Option<String>,
+    /// Mean planner parameters in force over the metrics window (EEMP methods; empty for the
+    /// others and in results written before these columns existed).
+    #[serde(default)]
+    pub swing_time_s: Option<f64>,
+    #[serde(default)]
+    pub step_height_m: Option<f64>,
+    #[serde(default)]
+    pub body_height_m: Option<f64>,
+    #[serde(default)]
+    pub ellipse_rx_m: Option<f64>,
+    #[serde(default)]
+    pub ellipse_ry_m: Option<f64>,
+}
+
+impl SuiteRow {
+    /// The mean parameters in force, in `PlannerParams::to_array`'s order.
+    pub fn params_mean(&self) -> Option<[f64; 5]> {
+        Some([
+            self.swing_time_s?,
+            self.step_height_m?,
+            self.body_height_m?,
+            self.ellipse_rx_m?,
+            self.ellipse_ry_m?,
+        ])
+    }
+
+    fn set_params_mean(&mut self, p: Option<[f64; 5]>) {
+        let at = |i: usize| p.map(|a| a[i]);
+        self.swing_time_s = at(0);
+        self.step_height_m = at(1);
+        self.body_height_m = at(2);
+        self.ellipse_rx_m = at(3);
+        self.ellipse_ry_m = at(4);
+    }
 }
 
 pub const RESULTS: &str = "results.csv";
 /// The columns of `results.csv` (the fields of [`SuiteRow`]).
-const HEADER: &str = "run_id,method,scenario,speed_mps,seed,fell,fell_at_s,vel_rmse_mps,cot,manipulability,distance_m,steps_total,wall_s,error";
+const HEADER: &str = "run_id,method,scenario,speed_mps,seed,fell,fell_at_s,vel_rmse_mps,cot,manipulability,distance_m,steps_total,wall_s,error,swing_time_s,step_height_m,body_height_m,ellipse_rx_m,ellipse_ry_m";
 pub const CONFIG: &str = "suite.toml";
 
 impl SuiteConfig {
@@ -403,6 +437,16 @@ pub fn simulate(
         }
     }
     let t0 = std::time::Instant::now();
+    // The parameters in force over the metrics window (EEMP's constant or table, EEMP-RL's).
+    let mut params = eemp_core::planner::params_stats::ParamsStats::default();
+    let metrics_start_s = spec.metrics_start_s;
+    let mut observe = |r: &eemp_sim::closed_loop::StepRecord| {
+        if r.state.time_s >= metrics_start_s {
+            if let Some(p) = r.plan.and_then(|p| p.params) {
+                params.observe(r.command.vx_mps.hypot(r.command.vy_mps), &p);
+            }
+        }
+    };
     let walk = match m.kind.as_str() {
         "eemp" => {
             let t = m
@@ -413,7 +457,7 @@ pub fn simulate(
             spec.controller.slip.adapt_friction = m.adapt_friction;
             let mut c = eemp_controller(robot, &spec).map_err(|e| e.to_string())?;
             let start = StartPose::eemp(robot, &spec).map_err(|e| e.to_string())?;
-            run_walk_with(robot, &spec, &start, &mut c, |_| {})
+            run_walk_with(robot, &spec, &start, &mut c, &mut observe)
         }
         "eemp-rl" => {
             let p = Policy::load(
@@ -422,9 +466,13 @@ pub fn simulate(
             )?;
             adopt_policy_filter(&mut spec.state_source, &p, &m.kf_options());
             let cfg = p.config.eemp_rl.clone();
-            let start = EempRlController::<Policy>::start_pose(robot, &cfg)?;
+            let start = EempRlController::<Policy>::start_pose(
+                robot,
+                &cfg,
+                spec.profile.first_speed_mps(),
+            )?;
             let mut c = EempRlController::new(robot, cfg, p)?;
-            run_walk_with(robot, &spec, &start, &mut c, |_| {})
+            run_walk_with(robot, &spec, &start, &mut c, &mut observe)
         }
         k => {
             let task: TaskKind = k.parse()?;
@@ -432,11 +480,11 @@ pub fn simulate(
             adopt_policy_filter(&mut spec.state_source, &p, &m.kf_options());
             let mut c = PolicyController::new(p, robot, robot.simulation.timestep_s)?;
             let start = StartPose::from_joints(robot, c.default_pose());
-            run_walk_with(robot, &spec, &start, &mut c, |_| {})
+            run_walk_with(robot, &spec, &start, &mut c, &mut observe)
         }
     }
     .map_err(|e| e.to_string())?;
-    Ok(SuiteRow {
+    let mut row = SuiteRow {
         run_id: cfg.run_id(run),
         method: m.name.clone(),
         scenario: sc.name.clone(),
@@ -451,7 +499,10 @@ pub fn simulate(
         steps_total: walk.steps.0.iter().sum::<usize>() as u64,
         wall_s: t0.elapsed().as_secs_f64(),
         error: None,
-    })
+        ..Default::default()
+    };
+    row.set_params_mean(params.mean().map(|p| p.to_array()));
+    Ok(row)
 }
 
 /// Reads the rows of a results file, dropping a partial last line and rows with an error.
@@ -549,6 +600,7 @@ pub fn run_suite(
                     steps_total: 0,
                     wall_s: 0.0,
                     error: Some(e),
+                    ..Default::default()
                 });
                 let mut w = csv::WriterBuilder::new()
                     .has_headers(false)

@@ -241,6 +241,73 @@ fn training_curves(cfg: &SuiteConfig, png: &Path) -> Result<Vec<String>, String>
     Ok(found)
 }
 
+/// The parameters in force per speed for every method that reports them (EEMP's), one panel
+/// per parameter; false (no figure) when no method does.
+fn params_figure(
+    cfg: &SuiteConfig,
+    rows: &[SuiteRow],
+    speeds: &[f64],
+    png: &Path,
+) -> Result<bool, String> {
+    let names = eemp_core::planner::PlannerParams::NAMES;
+    let units = ["s", "m", "m", "m", "m"];
+    let labels = [
+        "swing time ΔT",
+        "step height h_step",
+        "body height X_z",
+        "ellipse r_x",
+        "ellipse r_y",
+    ];
+    let mut panels = Vec::new();
+    for k in 0..names.len() {
+        let mut series = Vec::new();
+        for m in &cfg.methods {
+            let y: Vec<f64> = speeds
+                .iter()
+                .map(|&v| {
+                    let vals: Vec<f64> = rows
+                        .iter()
+                        .filter(|r| r.method == m.name && (r.speed_mps - v).abs() < 1e-6 && !r.fell)
+                        .filter_map(|r| r.params_mean().map(|p| p[k]))
+                        .collect();
+                    match vals.is_empty() {
+                        true => f64::NAN,
+                        false => vals.iter().sum::<f64>() / vals.len() as f64,
+                    }
+                })
+                .collect();
+            if y.iter().any(|v| v.is_finite()) {
+                series.push(Series {
+                    label: m.name.clone(),
+                    x: speeds.to_vec(),
+                    y,
+                });
+            }
+        }
+        if series.is_empty() {
+            return Ok(false);
+        }
+        panels.push(Panel {
+            title: format!(
+                "{} in force (mean over the metrics window and the seeds)",
+                labels[k]
+            ),
+            x_label: "commanded speed [m/s]".into(),
+            y_label: format!("{} [{}]", names[k], units[k]),
+            series,
+            markers: vec![],
+            bands: vec![],
+        });
+    }
+    line_panels(
+        png,
+        "Planner parameters each EEMP method walked with",
+        &panels,
+    )
+    .map_err(|e| e.to_string())?;
+    Ok(true)
+}
+
 pub fn compare(args: &SuiteArgs) -> Result<(), String> {
     let (cfg, rows) = run(args, "suites/compare.toml")?;
     let cells = aggregate(&rows);
@@ -293,6 +360,7 @@ pub fn compare(args: &SuiteArgs) -> Result<(), String> {
     )
     .map_err(|e| e.to_string())?;
     let curves = training_curves(&cfg, &args.out.join("fig9.png"))?;
+    let with_params = params_figure(&cfg, &rows, &speeds, &args.out.join("params.png"))?;
 
     let mut md = String::new();
     let _ = writeln!(md, "# Four-method comparison (the paper's Fig. 7)\n");
@@ -317,6 +385,14 @@ pub fn compare(args: &SuiteArgs) -> Result<(), String> {
         md,
         "![Fig. 7 analogue](fig7.png)\n\n![Fig. 9 analogue](fig9.png)\n"
     );
+    if with_params {
+        let _ = writeln!(
+            md,
+            "The planner parameters each EEMP method walked with (mean over the metrics \
+             window and the seeds; EEMP-RL's are its own choices, the table's are the table's \
+             at the command):\n\n![parameters in force](params.png)\n"
+        );
+    }
     let _ = writeln!(
         md,
         "Training logs: {}.\n",
@@ -426,12 +502,21 @@ pub fn compare(args: &SuiteArgs) -> Result<(), String> {
     match (&eemp, by_kind("eemp-rl")) {
         (Some(e), Some(r)) => {
             let mut ge = [0usize; 3];
+            let (mut worst_pct, mut sum_pct, mut within) = (f64::NEG_INFINITY, 0.0, 0usize);
             for &v in &low {
-                ge[0] += (mean_of(&r, v, |c| &c.cot) <= mean_of(e, v, |c| &c.cot)) as usize;
+                let (cr, ce) = (mean_of(&r, v, |c| &c.cot), mean_of(e, v, |c| &c.cot));
+                ge[0] += (cr <= ce) as usize;
                 ge[1] += (mean_of(&r, v, |c| &c.manipulability)
                     >= mean_of(e, v, |c| &c.manipulability)) as usize;
-                ge[2] +=
-                    (mean_of(&r, v, |c| &c.vel_rmse) <= mean_of(e, v, |c| &c.vel_rmse)) as usize;
+                let (tr, te) = (
+                    mean_of(&r, v, |c| &c.vel_rmse),
+                    mean_of(e, v, |c| &c.vel_rmse),
+                );
+                ge[2] += (tr <= te) as usize;
+                within += (tr <= te + 0.01) as usize;
+                let pct = 100.0 * (cr / ce - 1.0);
+                worst_pct = worst_pct.max(pct);
+                sum_pct += pct;
             }
             let falls: usize = speeds
                 .iter()
@@ -439,8 +524,8 @@ pub fn compare(args: &SuiteArgs) -> Result<(), String> {
                 .sum();
             let _ = writeln!(
                 md,
-                "| EEMP-RL ≥ EEMP-Analytical | at ≤ 0.6 m/s EEMP-RL's CoT is lower or equal at {} of {} speeds, manipulability higher or equal at {}, tracking better or equal at {}; it fell in {falls} runs over all speeds |",
-                ge[0], low.len(), ge[1], ge[2]
+                "| {r} \"slightly outperforms\" {e} in CoT and manipulability | at ≤ 0.6 m/s {r}'s CoT is lower or equal at {} of {} speeds (mean {:+.1} %, at most {:+.1} % against the table), manipulability higher or equal at {}, tracking better or equal at {} and within +0.01 m/s at {}; it fell in {falls} runs over all speeds |",
+                ge[0], low.len(), sum_pct / low.len().max(1) as f64, worst_pct, ge[1], ge[2], within
             );
         }
         _ => {
@@ -467,10 +552,75 @@ pub fn compare(args: &SuiteArgs) -> Result<(), String> {
     }
     write_report(&args.out, &md, "eemp compare")?;
     println!(
-        "wrote {}/report.md, report.html, fig7.png, fig9.png, results.csv",
+        "wrote {}/report.md, report.html, fig7.png, fig9.png, params.png, results.csv",
         args.out.display()
     );
     Ok(())
+}
+
+/// Each EEMP-RL method against EEMP-Analytical with the free gait's table on the same
+/// estimator: falls per case and in total, and where neither falls which has the lower CoT.
+/// A method's cell in a case (scenario, speed).
+type CellOf<'a> = dyn Fn(&str, &(String, f64)) -> Option<&'a Cell> + 'a;
+
+fn rl_against_table<'a>(
+    cfg: &SuiteConfig,
+    cats: &[(String, f64)],
+    cell: &CellOf<'a>,
+    md: &mut String,
+) {
+    let free_table = |m: &&MethodConfig| {
+        m.kind == "eemp"
+            && m.gait.as_deref() == Some("free")
+            && !m.adapt_friction
+            && m.free_pairing.is_none()
+            && m.kf_velocity_jump_mps.is_none()
+            && m.kf_leg_outlier_mps.is_none()
+    };
+    let mut lines = Vec::new();
+    for r in cfg.methods.iter().filter(|m| m.kind == "eemp-rl") {
+        let Some(t) = cfg
+            .methods
+            .iter()
+            .filter(free_table)
+            .find(|t| t.estimator(cfg) == r.estimator(cfg))
+        else {
+            continue;
+        };
+        let (mut fr, mut ft, mut more, mut both_walk, mut lower) = (0, 0, 0, 0, 0);
+        for c in cats {
+            let (Some(a), Some(b)) = (cell(&r.name, c), cell(&t.name, c)) else {
+                continue;
+            };
+            fr += a.falls;
+            ft += b.falls;
+            more += (a.falls > b.falls) as usize;
+            if a.falls == 0 && b.falls == 0 {
+                both_walk += 1;
+                lower += (a.cot.mean() < b.cot.mean()) as usize;
+            }
+        }
+        lines.push(format!(
+            "| {} | {} | {fr} | {ft} | {more} | {lower} of {both_walk} |",
+            r.name, t.name
+        ));
+    }
+    if !lines.is_empty() {
+        let _ = writeln!(
+            md,
+            "\n## EEMP-RL against the table it learned from\n\nFalls over all cases, cases \
+             where EEMP-RL fell in more runs, and among the cases where neither fell the ones \
+             where EEMP-RL's mean CoT is lower.\n"
+        );
+        let _ = writeln!(
+            md,
+            "| EEMP-RL | EEMP-Analytical | EEMP-RL falls | table falls | cases with more falls | lower CoT |"
+        );
+        let _ = writeln!(md, "|---|---|---|---|---|---|");
+        for l in lines {
+            let _ = writeln!(md, "{l}");
+        }
+    }
 }
 
 pub fn robustness(args: &SuiteArgs) -> Result<(), String> {
@@ -669,6 +819,7 @@ pub fn robustness(args: &SuiteArgs) -> Result<(), String> {
             let _ = writeln!(md, "\nLargest ratio: {w:.2}.");
         }
     }
+    rl_against_table(&cfg, &cats, &cell, &mut md);
     write_report(&args.out, &md, "eemp robustness")?;
     println!(
         "wrote {}/report.md, report.html, robustness.png, results.csv",

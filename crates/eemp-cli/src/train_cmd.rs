@@ -3,7 +3,7 @@
 
 use crate::plots::{line_panels, Panel, Series};
 use eemp_core::robot::RobotConfig;
-use eemp_rl::config::{TaskKind, TrainConfig};
+use eemp_rl::config::{Optimizer, TaskKind, TrainConfig};
 use eemp_rl::train::{train, TrainOptions};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
@@ -38,6 +38,10 @@ pub struct TrainArgs {
     /// Robot description (default: the shipped A1).
     #[arg(long)]
     pub robot: Option<PathBuf>,
+    /// With `optimizer = "cmaes"`: a PPO run's train.csv whose return curve curves.png draws
+    /// beside CMA-ES's, against decisions.
+    #[arg(long)]
+    pub compare_curve: Option<PathBuf>,
 }
 
 pub fn run(args: &TrainArgs) -> Result<(), String> {
@@ -93,6 +97,12 @@ pub fn run(args: &TrainArgs) -> Result<(), String> {
             args.out.display()
         ));
     }
+    if config.optimizer == Optimizer::Cmaes {
+        return run_cmaes(args, &config, &robot, threads);
+    }
+    if args.compare_curve.is_some() {
+        return Err("--compare-curve is for optimizer = \"cmaes\" configs".into());
+    }
     let bar = ProgressBar::new(config.total_env_steps);
     bar.set_style(
         ProgressStyle::with_template("{bar:30} {pos}/{len} env steps  {msg}  ETA {eta}")
@@ -139,6 +149,169 @@ pub fn run(args: &TrainArgs) -> Result<(), String> {
         args.out.display()
     );
     Ok(())
+}
+
+/// `eemp train` with `optimizer = "cmaes"`: table.toml, cmaes.csv, curves.png, config.toml.
+fn run_cmaes(
+    args: &TrainArgs,
+    config: &TrainConfig,
+    robot: &RobotConfig,
+    threads: usize,
+) -> Result<(), String> {
+    let cache = args.out.join("checkpoint").join("evaluations.csv");
+    if !args.resume && cache.exists() {
+        return Err(format!(
+            "{} already holds a CMA-ES run: pass --resume to continue it, or choose another --out",
+            args.out.display()
+        ));
+    }
+    if let Some(p) = &args.compare_curve {
+        if !p.exists() {
+            return Err(format!("--compare-curve {}: no such file", p.display()));
+        }
+    }
+    let opts = TrainOptions {
+        out: args.out.clone(),
+        resume: args.resume,
+        threads,
+        max_iterations: None,
+    };
+    let bar = ProgressBar::new(config.total_env_steps);
+    bar.set_style(
+        ProgressStyle::with_template("{bar:30} {pos}/{len} decisions  {msg}  ETA {eta}")
+            .expect("valid template"),
+    );
+    eemp_rl::cma_table::train_cmaes(config, robot, &opts, &mut |log| {
+        bar.set_position(log.env_steps);
+        let line = format!(
+            "gen {} decisions {} wall {:.0}s mean {:.3} best {:.3} sigma {:.3} falls {}/{}",
+            log.generation,
+            log.env_steps,
+            log.wall_s,
+            log.mean_return,
+            log.best_return,
+            log.sigma,
+            log.falls,
+            log.episodes
+        );
+        match bar.is_hidden() {
+            true => eprintln!("{line}"),
+            false => bar.set_message(line),
+        }
+    })?;
+    bar.finish();
+    cmaes_curves(
+        &args.out.join("cmaes.csv"),
+        args.compare_curve.as_deref(),
+        &args.out.join("curves.png"),
+    )?;
+    println!(
+        "wrote {}/table.toml, cmaes.csv, curves.png, config.toml",
+        args.out.display()
+    );
+    Ok(())
+}
+
+/// Columns `names` of a CSV file, as numbers (NaN where a cell is not one).
+fn csv_columns(path: &Path, names: &[&str]) -> Result<Vec<Vec<f64>>, String> {
+    let mut r =
+        csv::Reader::from_path(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    let headers = r.headers().map_err(|e| e.to_string())?.clone();
+    let idx: Vec<usize> = names
+        .iter()
+        .map(|n| {
+            headers
+                .iter()
+                .position(|h| h == *n)
+                .ok_or_else(|| format!("{} has no column {n}", path.display()))
+        })
+        .collect::<Result<_, _>>()?;
+    let mut out = vec![Vec::new(); names.len()];
+    for row in r.records() {
+        let row = row.map_err(|e| format!("{}: {e}", path.display()))?;
+        for (col, &i) in out.iter_mut().zip(&idx) {
+            col.push(
+                row.get(i)
+                    .and_then(|s| s.parse::<f64>().ok())
+                    .unwrap_or(f64::NAN),
+            );
+        }
+    }
+    Ok(out)
+}
+
+/// CMA-ES's return (population mean and best) against decisions, with PPO's mean return from
+/// `ppo_csv` beside it; and the share of episodes that fell.
+pub fn cmaes_curves(cmaes_csv: &Path, ppo_csv: Option<&Path>, png: &Path) -> Result<(), String> {
+    let c = csv_columns(
+        cmaes_csv,
+        &[
+            "env_steps",
+            "mean_return",
+            "best_return",
+            "episodes",
+            "falls",
+        ],
+    )?;
+    let k = |v: &[f64]| v.iter().map(|x| x / 1e3).collect::<Vec<_>>();
+    let fall_share: Vec<f64> = c[3]
+        .iter()
+        .zip(&c[4])
+        .map(|(n, f)| f / n.max(1.0))
+        .collect();
+    let mut returns = vec![
+        Series {
+            label: "CMA-ES, population mean".into(),
+            x: k(&c[0]),
+            y: c[1].clone(),
+        },
+        Series {
+            label: "CMA-ES, best candidate".into(),
+            x: k(&c[0]),
+            y: c[2].clone(),
+        },
+    ];
+    let mut falls = vec![Series {
+        label: "CMA-ES".into(),
+        x: k(&c[0]),
+        y: fall_share,
+    }];
+    if let Some(p) = ppo_csv {
+        let v = csv_columns(p, &["env_steps", "mean_return", "episodes", "falls"])?;
+        returns.push(Series {
+            label: "PPO, mean of the last 100 episodes".into(),
+            x: k(&v[0]),
+            y: v[1].clone(),
+        });
+        falls.push(Series {
+            label: "PPO".into(),
+            x: k(&v[0]),
+            y: v[2]
+                .iter()
+                .zip(&v[3])
+                .map(|(n, f)| f / n.max(1.0))
+                .collect(),
+        });
+    }
+    let panels = vec![
+        Panel {
+            title: "episode return".into(),
+            x_label: "decisions [thousands]".into(),
+            y_label: "return [-]".into(),
+            series: returns,
+            markers: vec![],
+            bands: vec![],
+        },
+        Panel {
+            title: "episodes that fell".into(),
+            x_label: "decisions [thousands]".into(),
+            y_label: "share of episodes [-]".into(),
+            series: falls,
+            markers: vec![],
+            bands: vec![],
+        },
+    ];
+    line_panels(png, "EEMP-RL's residual: CMA-ES and PPO", &panels).map_err(|e| e.to_string())
 }
 
 /// The Fig. 9 analogue: return, episode length and falls against environment steps.

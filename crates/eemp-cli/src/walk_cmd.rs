@@ -299,6 +299,13 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
         "cmd_vy_mps",
         "cmd_yaw_rate_rps",
         "power_w",
+        // The planner parameters in force (EEMP: constant, the table's at the command, or
+        // EEMP-RL's choice; NaN for a controller without them).
+        "swing_time_s",
+        "step_height_m",
+        "body_height_m",
+        "ellipse_rx_m",
+        "ellipse_ry_m",
     ]
     .iter()
     .map(|s| s.to_string())
@@ -325,12 +332,16 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
     let mut foot_z: [Vec<f64>; 4] = Default::default();
     let mut stance: Vec<[bool; 4]> = Vec::new();
     let mut i = 0usize;
+    let mut params_in_force = eemp_core::planner::params_stats::ParamsStats::default();
     let mut frames = Vec::new();
     let video_every = (1.0 / (crate::video::FPS * robot.simulation.timestep_s)).round() as usize;
     let observer = |r: &eemp_sim::closed_loop::StepRecord| {
         let s = &r.state.body;
         let v = s.v_heading();
         let cmd = spec.profile.command_at(r.state.time_s);
+        if let Some(p) = r.plan.and_then(|p| p.params) {
+            params_in_force.observe(cmd.vx_mps.hypot(cmd.vy_mps), &p);
+        }
         if args.video.is_some() && i.is_multiple_of(video_every) {
             frames.push(crate::video::VideoFrame::of(
                 r.state,
@@ -364,6 +375,10 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
                 cmd.yaw_rate_rps,
                 positive_power_w(&qd, &r.output.torques),
             ];
+            match r.plan.and_then(|p| p.params) {
+                Some(p) => row.extend(p.to_array()),
+                None => row.extend([f64::NAN; 5]),
+            }
             for leg in Leg::ALL {
                 let f = r.feet_world[leg];
                 let z_ref = r
@@ -410,7 +425,9 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
             let cfg = policy.config.eemp_rl.clone();
             let start =
                 eemp_rl::tasks::eemp_rl::EempRlController::<eemp_rl::policy::Policy>::start_pose(
-                    &robot, &cfg,
+                    &robot,
+                    &cfg,
+                    spec.profile.first_speed_mps(),
                 )?;
             let mut c = eemp_rl::tasks::eemp_rl::EempRlController::new(&robot, cfg, *policy)?;
             let run = run_walk_with(&robot, &spec, &start, &mut c, observer)
@@ -452,7 +469,12 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
         "gait": if args.controller == "eemp" { Some(gait.to_string()) } else { None },
         "speed_mps": args.speed,
         "profile": args.profile.as_ref().map(|p| p.display().to_string()),
-        "params": params,
+        // Constant parameters given (--params or Table II); what actually ran, per commanded
+        // speed, is under params_in_force (a table's, EEMP-RL's choices).
+        "params": (args.controller == "eemp" && args.params_table.is_none()).then_some(params),
+        "params_in_force": params_in_force.per_speed(),
+        // A learned policy acts with its Gaussian's mean (no sampling).
+        "policy_action": args.policy.as_ref().map(|_| "mean"),
         "params_table": args.params_table.as_ref().map(|p| p.display().to_string()),
         "progress_factor": spec.planner.progress_factor,
         "retarget_swing": args.retarget_swing,

@@ -328,3 +328,78 @@ fn bad_hardware_input_exits_2_names_the_value_and_writes_nothing() {
         assert!(!wrote, "{args:?} wrote its output");
     }
 }
+
+#[test]
+fn a_residual_eemp_rl_config_with_a_missing_or_wrong_table_exits_2_naming_the_file() {
+    let dir = scratch("residual");
+    let shipped = std::fs::read_to_string(
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../policies/a1_eemp_rl.toml"),
+    )
+    .unwrap();
+    let missing = dir.join("missing.toml");
+    std::fs::write(
+        &missing,
+        shipped.replace("tables/a1_free.toml", "no/such/free_table.toml"),
+    )
+    .unwrap();
+    let (code, stderr, wrote) = eemp(
+        &dir,
+        &[
+            "train",
+            "--task",
+            "eemp-rl",
+            "--config",
+            missing.to_str().unwrap(),
+        ],
+    );
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(stderr.contains("no/such/free_table.toml"), "{stderr}");
+    assert!(!wrote);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn a_walk_traces_the_parameters_in_force_and_summarises_them_per_speed() {
+    let dir = scratch("params-in-force");
+    let table = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../tables/a1_free.toml");
+    let (code, stderr, _) = eemp(
+        &dir,
+        &[
+            "walk",
+            "--gait",
+            "free",
+            "--params-table",
+            table.to_str().unwrap(),
+            "--speed",
+            "0.3",
+            "--duration",
+            "1.5",
+        ],
+    );
+    assert_eq!(code, Some(0), "{stderr}");
+    let trace = std::fs::read_to_string(dir.join("out/trace.csv")).unwrap();
+    let header: Vec<&str> = trace.lines().next().unwrap().split(',').collect();
+    let col = |n: &str| header.iter().position(|h| *h == n).unwrap();
+    let last: Vec<f64> = trace
+        .lines()
+        .last()
+        .unwrap()
+        .split(',')
+        .map(|v| v.parse().unwrap())
+        .collect();
+    // The table's entry for 0.3 m/s (tables/a1_free.toml).
+    let t = eemp_core::planner::params_table::ParamsTable::load(&table).unwrap();
+    let p = t.lookup(0.3);
+    assert_eq!(last[col("swing_time_s")], p.swing_time_s);
+    assert_eq!(last[col("ellipse_rx_m")], p.ellipse_rx_m);
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("out/summary.json")).unwrap())
+            .unwrap();
+    // Table II's constants did not run: no "params"; per speed: 0 (standing) and 0.3 m/s.
+    assert!(s["params"].is_null(), "{}", s["params"]);
+    let speeds = s["params_in_force"].as_array().unwrap();
+    assert_eq!(speeds.len(), 2, "{speeds:?}");
+    let mean = speeds[1]["mean"]["body_height_m"].as_f64().unwrap();
+    assert!((mean - p.body_height_m).abs() < 1e-12, "{mean}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

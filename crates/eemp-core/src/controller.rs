@@ -13,6 +13,7 @@ use crate::leg_control::{
     clamp_torque, stance_torque, swing_torque, DynamicsModel, FootMeasurement, FootReference,
     SwingGains,
 };
+use crate::planner::PlannerParams;
 use crate::robot::RobotConfig;
 use crate::slip::{FrictionAdapter, SlipConfig};
 use nalgebra::Vector3;
@@ -33,6 +34,8 @@ pub struct Plan {
     pub feet_horizon_world: Vec<LegMap<Vector3<f64>>>,
     /// Contact schedule C_ref over the MPC horizon.
     pub contacts_horizon: Vec<LegMap<bool>>,
+    /// The planner parameters this plan was made with (None: a plan without them, standing).
+    pub params: Option<PlannerParams>,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

@@ -15,6 +15,10 @@ pub enum ParamsSource {
     Constant(PlannerParams),
     /// EEMP-Analytical: looked up per commanded speed |(v_x, v_y)|.
     Table(ParamsTable),
+    /// EEMP-RL's residual: the table's parameters at the commanded speed moved by `delta`
+    /// ([`PlannerParams::to_array`]'s order), clamped into Table I. A zero `delta` is the
+    /// table, bit for bit.
+    Residual { table: ParamsTable, delta: [f64; 5] },
 }
 
 impl ParamsSource {
@@ -22,6 +26,9 @@ impl ParamsSource {
         match self {
             ParamsSource::Constant(p) => *p,
             ParamsSource::Table(t) => t.lookup(speed_mps),
+            ParamsSource::Residual { table, delta } => {
+                table.lookup(speed_mps).offset_within_table_i(delta)
+            }
         }
     }
 }

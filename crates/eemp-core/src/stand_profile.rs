@@ -198,6 +198,7 @@ impl StandPlanner {
                 .collect(),
             feet_horizon_world: vec![*feet_world; n],
             contacts_horizon: vec![LegMap::splat(true); n],
+            params: None,
         }
     }
 }

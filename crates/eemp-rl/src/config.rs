@@ -140,6 +140,9 @@ pub struct NetworkConfig {
     pub actor_hidden: Vec<usize>,
     pub critic_hidden: Vec<usize>,
     pub activation: Activation,
+    /// Init gain of the actor's last layer (0.01: the policy starts near its mean action; 0:
+    /// exactly at it, e.g. EEMP-RL's residual starts as the table).
+    pub actor_output_gain: f64,
 }
 
 impl Default for NetworkConfig {
@@ -148,12 +151,19 @@ impl Default for NetworkConfig {
             actor_hidden: vec![128, 128],
             critic_hidden: vec![128, 128],
             activation: Activation::Elu,
+            actor_output_gain: 0.01,
         }
     }
 }
 
 impl NetworkConfig {
     pub fn validate(&self) -> Result<(), ConfigError> {
+        check_range(
+            "network.actor_output_gain",
+            self.actor_output_gain,
+            0.0,
+            10.0,
+        )?;
         for (name, layers) in [
             ("network.actor_hidden", &self.actor_hidden),
             ("network.critic_hidden", &self.critic_hidden),
@@ -197,10 +207,24 @@ pub struct TrainConfig {
     /// The filter's settings with `estimator = "kf"` (`eemp_core::estimator::KfConfig`; the
     /// rest of it is the filter's default).
     pub kf: TrainKf,
+    /// What trains the policy: PPO (every task) or CMA-ES (EEMP-RL's residual, as a re-tuned
+    /// table: [`crate::cma_table`]).
+    pub optimizer: Optimizer,
+    /// CMA-ES's settings with `optimizer = "cmaes"`.
+    pub cmaes: crate::cma_table::CmaesConfig,
     /// Fine-tuning: start from this policy file's networks, exploration noise and observation
     /// normaliser (same task and network shapes) instead of random ones; the optimiser starts
     /// fresh. None: from scratch.
     pub init_policy: Option<std::path::PathBuf>,
+}
+
+/// The optimiser of a training run.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Optimizer {
+    #[default]
+    Ppo,
+    Cmaes,
 }
 
 /// The state a policy trains on. On the filter a checkpoint holds no filter or sensor state:
@@ -252,6 +276,8 @@ impl Default for TrainConfig {
             cart_pole: CartPoleConfig::default(),
             estimator: TrainEstimator::GroundTruth,
             kf: TrainKf::default(),
+            optimizer: Optimizer::Ppo,
+            cmaes: Default::default(),
             init_policy: None,
         }
     }
@@ -285,6 +311,9 @@ impl TrainConfig {
                     .into(),
             });
         }
+        if self.optimizer == Optimizer::Cmaes {
+            crate::cma_table::check_config(self)?;
+        }
         match self.task {
             TaskKind::ModelFree => self.model_free.validate(),
             TaskKind::Imitation => self.imitation.validate(),
@@ -295,7 +324,11 @@ impl TrainConfig {
 
     /// Reads and validates a config file; errors name the file and the key.
     pub fn load(path: &std::path::Path) -> Result<Self, ConfigError> {
-        let c: TrainConfig = eemp_core::config_error::load_toml(path)?;
+        let mut c: TrainConfig = eemp_core::config_error::load_toml(path)?;
+        c.eemp_rl.read_files().map_err(|e| ConfigError::Invalid {
+            name: path.display().to_string(),
+            message: e.to_string(),
+        })?;
         c.validate().map_err(|e| ConfigError::Invalid {
             name: path.display().to_string(),
             message: e.to_string(),

@@ -20,6 +20,9 @@ pub struct StepInfo {
     /// A NaN/inf appeared in the action or the state: the episode was ended and counted, and the
     /// bad values never reach the network.
     pub invalid: bool,
+    /// Semi-MDP steps: this step lasted this many of the task's nominal periods, and the next
+    /// value is discounted by γ^periods. None: one period (every fixed-rate task).
+    pub periods: Option<f64>,
 }
 
 /// A reinforcement-learning task.
@@ -299,6 +302,7 @@ fn step_slot<E: Env>(
     } else {
         StepInfo {
             invalid: true,
+            periods: None,
             ..Default::default()
         }
     };

@@ -5,6 +5,7 @@
 //!   ([`tasks::imitation`], on the retargeted dog motions of [`imitation`]) and a cart-pole test task.
 //! - [`nn`], [`adam`], [`ppo`], [`normalizer`]: networks on candle, Adam with open state,
 //!   the PPO update, running observation normalisation.
+//! - [`cma_table`]: CMA-ES on EEMP-RL's residual (the second optimiser), a re-tuned table.
 //! - [`train`]: the training loop with `train.csv`, checkpoints and resume.
 //! - [`policy`]: policy files; [`controller`]: a trained policy as a [`eemp_core::control::Controller`].
 
@@ -12,6 +13,7 @@
 #![allow(clippy::needless_range_loop)]
 
 pub mod adam;
+pub mod cma_table;
 pub mod config;
 pub mod controller;
 pub mod env;

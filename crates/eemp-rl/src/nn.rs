@@ -128,7 +128,7 @@ impl ActorCritic {
                 &net.actor_hidden,
                 act_dim,
                 net.activation,
-                0.01,
+                net.actor_output_gain,
                 rng,
             )?,
             critic: Mlp::new(obs_dim, &net.critic_hidden, 1, net.activation, 1.0, rng)?,

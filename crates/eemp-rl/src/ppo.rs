@@ -25,6 +25,9 @@ pub struct Rollout {
     pub rewards: Vec<f32>,
     /// The episode ended after this step (termination or truncation).
     pub dones: Vec<bool>,
+    /// Semi-MDP: each step's length in nominal periods (γ^periods discounts the next value);
+    /// empty: every step one period.
+    pub periods: Vec<f32>,
     /// log σ of the policy that collected the batch.
     pub log_std: Vec<f32>,
 }
@@ -42,10 +45,12 @@ impl Rollout {
 
 /// GAE(γ, λ): advantages and returns (advantage + value) for a time-major rollout, bootstrapped
 /// from `last_values` (the value of each env's observation after the last step).
+#[allow(clippy::too_many_arguments)]
 pub fn gae(
     rewards: &[f32],
     values: &[f32],
     dones: &[bool],
+    periods: &[f32],
     last_values: &[f32],
     n_envs: usize,
     gamma: f64,
@@ -63,6 +68,12 @@ pub fn gae(
                 values[i + n_envs]
             } as f64;
             let not_done = if dones[i] { 0.0 } else { 1.0 };
+            // A step of k periods discounts the rest by γ^k (semi-MDP; Sutton, Precup & Singh
+            // 1999); λ stays per decision.
+            let gamma = match periods.get(i) {
+                Some(&k) => gamma.powf(k as f64),
+                None => gamma,
+            };
             let delta = rewards[i] as f64 + gamma * next_value * not_done - values[i] as f64;
             running = delta + gamma * lambda * not_done * running;
             adv[i] = running as f32;
@@ -188,6 +199,7 @@ pub fn update(
         &rollout.rewards,
         &rollout.values,
         &rollout.dones,
+        &rollout.periods,
         last_values,
         rollout.n_envs,
         cfg.gamma,
@@ -298,6 +310,7 @@ mod tests {
             &[0.0, 1.0],
             &[1.0, 2.0],
             &[false, false],
+            &[],
             &[3.0],
             1,
             0.9,
@@ -311,11 +324,26 @@ mod tests {
             &[0.0, 1.0],
             &[1.0, 2.0],
             &[true, false],
+            &[],
             &[3.0],
             1,
             0.9,
             0.5,
         );
         assert!((adv[0] + 1.0).abs() < 1e-6);
+        // Semi-MDP: step 0 lasted 2 periods, so its bootstrap is γ² = 0.81: δ0 = 0 + 0.81·2 − 1
+        // = 0.62; A0 = 0.62 + 0.81·0.5·1.7 = 1.3085 (step 1, one period, as before).
+        let (adv, _) = gae(
+            &[0.0, 1.0],
+            &[1.0, 2.0],
+            &[false, false],
+            &[2.0, 1.0],
+            &[3.0],
+            1,
+            0.9,
+            0.5,
+        );
+        assert!((adv[1] - 1.7).abs() < 1e-6);
+        assert!((adv[0] - 1.3085).abs() < 1e-5, "{}", adv[0]);
     }
 }

@@ -5,6 +5,31 @@ use safetensors::tensor::{Dtype, SafeTensors, TensorView};
 use std::collections::{BTreeMap, HashMap};
 use std::path::Path;
 
+/// The same safetensors bytes with the JSON header's keys sorted (and the metadata's inside
+/// it): the crate writes its metadata map in hash order, which differs from run to run, so two
+/// equal files would differ in bytes. Data offsets are relative to the data, so they stand.
+fn canonical_header(bytes: Vec<u8>) -> Result<Vec<u8>, String> {
+    let bad = || "safetensors serialised a malformed header".to_string();
+    let n = u64::from_le_bytes(
+        bytes
+            .get(..8)
+            .ok_or_else(bad)?
+            .try_into()
+            .map_err(|_| bad())?,
+    ) as usize;
+    let header = bytes.get(8..8 + n).ok_or_else(bad)?;
+    // serde_json's map is a BTreeMap (no `preserve_order`): keys come out sorted.
+    let value: serde_json::Value = serde_json::from_slice(header).map_err(|_| bad())?;
+    let mut sorted = serde_json::to_vec(&value).map_err(|_| bad())?;
+    // The format pads the header with spaces to a multiple of 8 bytes.
+    sorted.resize(sorted.len().next_multiple_of(8), b' ');
+    let mut out = Vec::with_capacity(8 + sorted.len() + bytes.len() - 8 - n);
+    out.extend_from_slice(&(sorted.len() as u64).to_le_bytes());
+    out.extend_from_slice(&sorted);
+    out.extend_from_slice(&bytes[8 + n..]);
+    Ok(out)
+}
+
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct TensorFile {
     pub tensors: BTreeMap<String, (Vec<usize>, Vec<f32>)>,
@@ -80,7 +105,9 @@ impl TensorFile {
             })
             .collect::<Result<Vec<_>, _>>()?;
         let tmp = path.with_extension("tmp");
-        safetensors::serialize_to_file(views, Some(self.metadata.clone()), &tmp)
+        let bytes = safetensors::serialize(views, Some(self.metadata.clone()))
+            .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        std::fs::write(&tmp, canonical_header(bytes)?)
             .map_err(|e| format!("cannot write {}: {e}", tmp.display()))?;
         std::fs::rename(&tmp, path).map_err(|e| format!("cannot write {}: {e}", path.display()))
     }
@@ -114,5 +141,34 @@ impl TensorFile {
             out.insert(name, v.shape().to_vec(), data);
         }
         Ok(out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn equal_files_are_equal_bytes_whatever_the_metadata_order() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut f = TensorFile::default();
+        f.insert("b", vec![2], vec![1.0, 2.0]);
+        f.insert("a", vec![1], vec![3.0]);
+        for i in 0..20 {
+            f.metadata.insert(format!("key{i}"), format!("value {i}"));
+        }
+        let mut bytes = Vec::new();
+        for k in 0..4 {
+            // A fresh map each time: a new hash order.
+            let g = TensorFile {
+                metadata: f.metadata.clone().into_iter().collect(),
+                ..f.clone()
+            };
+            let p = dir.path().join(format!("{k}.safetensors"));
+            g.save(&p).unwrap();
+            bytes.push(std::fs::read(&p).unwrap());
+            assert_eq!(TensorFile::load(&p).unwrap(), f, "reads back");
+        }
+        assert!(bytes.windows(2).all(|w| w[0] == w[1]), "same bytes");
     }
 }

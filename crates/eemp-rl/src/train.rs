@@ -162,6 +162,25 @@ fn envs_on<E: OnClosedLoop>(
         .collect()
 }
 
+/// What environment `i` of a run observes: ground truth, or the filter with its own sensor noise
+/// seeded from the config's seed and `i`.
+pub fn training_state_source(config: &TrainConfig, robot: &RobotConfig, i: u64) -> StateSource {
+    match config.estimator {
+        TrainEstimator::GroundTruth => StateSource::GroundTruth,
+        TrainEstimator::Kf => {
+            let mut source = StateSource::kf(
+                robot,
+                SensorNoise::default(),
+                config.seed.wrapping_mul(0x9E37_79B9).wrapping_add(i),
+            );
+            if let Some(kf) = source.kf_config_mut() {
+                config.kf.apply(kf);
+            }
+            source
+        }
+    }
+}
+
 /// [`make_envs`] with an imitation task's motion given (as [`parse_motion`] returns it) instead
 /// of read from the config's file.
 pub fn make_envs_with(
@@ -170,21 +189,7 @@ pub fn make_envs_with(
     threads: usize,
     motion: Option<(ReferenceMotion, String)>,
 ) -> Result<AnyVecEnv, String> {
-    // On the filter each env has its own sensor noise, seeded from the config's seed.
-    let source = |i: usize| match config.estimator {
-        TrainEstimator::GroundTruth => StateSource::GroundTruth,
-        TrainEstimator::Kf => {
-            let mut source = StateSource::kf(
-                robot,
-                SensorNoise::default(),
-                config.seed.wrapping_mul(0x9E37_79B9).wrapping_add(i as u64),
-            );
-            if let Some(kf) = source.kf_config_mut() {
-                config.kf.apply(kf);
-            }
-            source
-        }
-    };
+    let source = |i: usize| training_state_source(config, robot, i as u64);
     Ok(match config.task {
         TaskKind::ModelFree => {
             let model = training_model(robot, &config.model_free)?;
@@ -216,9 +221,21 @@ pub fn make_envs_with(
             // EEMP runs at the robot file's time step (its MPC and swing law are tuned there).
             let model = eemp_sim::backend::build_model(robot, &Default::default())
                 .map_err(|e| e.to_string())?;
+            // Training worlds: each env its own floor and payload, drawn from the run's seed.
+            let next = std::cell::Cell::new(0usize);
             let envs = envs_on(
                 config.num_envs,
-                || EempRlEnv::new(robot, model.clone(), config.eemp_rl.clone()),
+                || {
+                    let i = next.replace(next.get() + 1);
+                    match &config.eemp_rl.worlds {
+                        Some(w) => EempRlEnv::in_world(
+                            robot,
+                            &w.draw(config.seed, i),
+                            config.eemp_rl.clone(),
+                        ),
+                        None => EempRlEnv::new(robot, model.clone(), config.eemp_rl.clone()),
+                    }
+                },
                 &source,
             )?;
             AnyVecEnv::EempRl(VecEnv::new(envs, config.seed, threads)?)
@@ -505,13 +522,24 @@ impl<E: Env> Trainer<E> {
                     .map_err(|e| e.to_string())?;
                 let v: Vec<f32> = values_of(&self.policy, &t)?;
                 for (j, &e) in truncated.iter().enumerate() {
-                    bootstrap[e] = (cfg.ppo.gamma as f32) * v[j];
+                    let gamma = match self.envs.infos[e].periods {
+                        Some(k) => cfg.ppo.gamma.powf(k),
+                        None => cfg.ppo.gamma,
+                    };
+                    bootstrap[e] = (gamma as f32) * v[j];
                 }
+            }
+            let semi_mdp = self.envs.infos.iter().any(|i| i.periods.is_some());
+            if semi_mdp && rollout.periods.is_empty() {
+                rollout.periods = vec![1.0; rollout.rewards.len()];
             }
             for e in 0..n {
                 let info = self.envs.infos[e];
                 rollout.rewards.push(info.reward as f32 + bootstrap[e]);
                 rollout.dones.push(info.terminated || info.truncated);
+                if semi_mdp || !rollout.periods.is_empty() {
+                    rollout.periods.push(info.periods.unwrap_or(1.0) as f32);
+                }
                 reward_sum += info.reward;
             }
             for (s, t) in term_sums.iter_mut().zip(self.envs.terms.chunks(k).fold(

@@ -1,14 +1,16 @@
 //! EEMP-RL: the action squashing covers Table I exactly and never leaves it; a policy that
-//! answers fixed parameters walks exactly as EEMP with those parameters; the environment steps.
+//! answers fixed parameters walks exactly as EEMP with those parameters; the environment steps;
+//! the residual form with a zero action is EEMP-Analytical bit for bit and rewards eq. 8.
 
 use eemp_core::planner::params::table_i;
-use eemp_core::planner::{PlannerParams, VelocityCommand};
+use eemp_core::planner::params_table::ParamsTable;
+use eemp_core::planner::{Gait, PlannerConfig, PlannerParams, VelocityCommand};
 use eemp_core::robot::RobotConfig;
 use eemp_rl::env::Env;
 use eemp_rl::tasks::eemp_rl::{
     squash, unsquash, walk_spec, EempRlConfig, EempRlController, EempRlEnv, FixedAction, RANGES,
 };
-use eemp_sim::walk::{eemp_controller, run_walk_with, VelocityProfile};
+use eemp_sim::walk::{eemp_controller, run_walk, run_walk_with, VelocityProfile, WalkSpec};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -79,7 +81,7 @@ fn a_fixed_answer_walks_exactly_as_eemp_with_those_parameters() {
             ..Default::default()
         },
     );
-    let start = EempRlController::<FixedAction>::start_pose(&robot, &cfg).unwrap();
+    let start = EempRlController::<FixedAction>::start_pose(&robot, &cfg, 0.3).unwrap();
     let mut trace_a = Vec::new();
     let mut eemp = eemp_controller(&robot, &spec).unwrap();
     let a = run_walk_with(&robot, &spec, &start, &mut eemp, |r| {
@@ -130,4 +132,207 @@ fn the_environment_steps_and_rewards_per_decision() {
     env.reset(&mut rng, &mut obs);
     let info = env.step(&[f32::NAN; 5], &mut rng, &mut obs, &mut terms);
     assert!(!info.invalid);
+}
+
+fn repo_file(path: &str) -> std::path::PathBuf {
+    std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../..")
+        .join(path)
+}
+
+/// The shipped residual config (its table read from the repository), on the flat floor.
+fn residual_config(episode_s: f64) -> EempRlConfig {
+    let text = std::fs::read_to_string(repo_file("policies/a1_eemp_rl.toml")).unwrap();
+    let mut c: eemp_rl::config::TrainConfig = toml::from_str(&text).unwrap();
+    let r = c
+        .eemp_rl
+        .residual
+        .as_mut()
+        .expect("the shipped config is residual");
+    r.table_file = repo_file(&r.table_file.display().to_string());
+    c.eemp_rl.read_files().unwrap();
+    c.eemp_rl.worlds = None;
+    c.eemp_rl.episode_s = episode_s;
+    c.eemp_rl.command_every_s = 1e3;
+    c.eemp_rl.validate().unwrap();
+    c.eemp_rl
+}
+
+/// `eemp walk --gait free --params-table tables/a1_free.toml --speed v --seed s`'s run.
+fn table_walk_spec(cfg: &EempRlConfig, speed: f64, duration_s: f64, seed: u64) -> WalkSpec {
+    let table = ParamsTable::load(&repo_file("tables/a1_free.toml")).unwrap();
+    let planner = PlannerConfig {
+        gait: Gait::Free,
+        progress_factor: table.progress_factor.unwrap(),
+        ..Default::default()
+    };
+    assert_eq!(
+        planner.free_pairing, cfg.free_pairing,
+        "the current swing rule"
+    );
+    let mut spec = WalkSpec::constant(
+        planner,
+        PlannerParams::default(),
+        VelocityCommand {
+            vx_mps: speed,
+            ..Default::default()
+        },
+        duration_s,
+    );
+    spec.params_table = Some(table);
+    spec.seed = seed;
+    spec
+}
+
+#[test]
+fn the_zero_residual_environment_walks_bit_for_bit_as_eemp_analytical_and_rewards_eq_8() {
+    let robot = RobotConfig::a1();
+    let model = eemp_sim::backend::build_model(&robot, &Default::default()).unwrap();
+    let cfg = residual_config(3.0);
+    let w = cfg.residual.as_ref().unwrap().rewards.clone();
+    let table = ParamsTable::load(&repo_file("tables/a1_free.toml")).unwrap();
+    let mut env = EempRlEnv::new(&robot, model, cfg.clone()).unwrap();
+    for (speed, seed) in [(0.1, 3), (0.4, 5), (0.8, 7)] {
+        let command = VelocityCommand {
+            vx_mps: speed,
+            ..Default::default()
+        };
+        let mut obs = vec![0f32; cfg.obs_dim()];
+        let mut terms = vec![0.0; 4];
+        env.reset_with(command, seed, &[], &mut obs);
+        let mut ends = Vec::new();
+        let mut energy_terms = Vec::new();
+        let mut cots = Vec::new();
+        loop {
+            let info = env.step(
+                &[0.0; 5],
+                &mut ChaCha8Rng::seed_from_u64(0),
+                &mut obs,
+                &mut terms,
+            );
+            assert!(!info.terminated && !info.invalid, "{speed} m/s: {info:?}");
+            ends.push(env.sim().ground_truth_state().body.p_world);
+            energy_terms.push(terms[0]);
+            cots.push(env.last_interval().unwrap().cot);
+            if info.truncated {
+                break;
+            }
+        }
+        assert_eq!(ends.len(), 6, "3 s of 0.5 s decisions");
+        // The same walk as `eemp walk`: the state after every physics step.
+        let spec = table_walk_spec(&cfg, speed, 3.0, seed);
+        let mut states = Vec::new();
+        let mut power = Vec::new();
+        run_walk(&robot, &spec, |r| {
+            states.push(r.state.body.p_world);
+            let qd = r.state.joints.map(|_, j| j.qd);
+            power.push(eemp_core::metrics::positive_power_w(&qd, &r.output.torques));
+        })
+        .unwrap();
+        for (k, p) in ends.iter().enumerate() {
+            let after = 500 * (k + 1);
+            if after < states.len() {
+                assert_eq!(*p, states[after], "{speed} m/s, decision {k}: bit for bit");
+            }
+        }
+        // Eq. (8) by hand over decision 3's window (steps 1500..2000 of the walk): E/(m g ΔD).
+        let dt = robot.simulation.timestep_s;
+        let energy: f64 = power[1500..2000].iter().map(|p| p * dt).sum();
+        let (a, b) = (states[1500], states[1999]);
+        let distance = (b.x - a.x).hypot(b.y - a.y);
+        let cot = energy / (robot.total_mass_kg() * 9.81 * distance);
+        let rewarded = cots[3].unwrap();
+        assert!(
+            (rewarded - cot).abs() < 1e-3 * cot,
+            "{speed} m/s: rewarded CoT {rewarded}, eq. 8 {cot}"
+        );
+        let (cot_table, _) = table.metrics_at(speed).unwrap();
+        let expect = w.energy * (1.0 - (rewarded / cot_table).clamp(0.0, w.ratio_clip));
+        assert!((energy_terms[3] - expect).abs() < 1e-12);
+    }
+}
+
+#[test]
+fn the_zero_residual_controller_is_eemp_analytical_and_an_untrained_policy_answers_zero() {
+    let robot = RobotConfig::a1();
+    let cfg = residual_config(20.0);
+    let spec = table_walk_spec(&cfg, 0.5, 3.0, 2);
+    let mut a = Vec::new();
+    run_walk(&robot, &spec, |r| a.push(r.state.body.p_world)).unwrap();
+    let start = EempRlController::<FixedAction>::start_pose(&robot, &cfg, 0.5).unwrap();
+    let mut rl = EempRlController::new(&robot, cfg.clone(), FixedAction([0.0; 5])).unwrap();
+    let mut b = Vec::new();
+    run_walk_with(&robot, &spec, &start, &mut rl, |r| {
+        b.push(r.state.body.p_world)
+    })
+    .unwrap();
+    assert_eq!(a, b, "bit for bit");
+    // An untrained residual policy (zero last layer) answers exactly zero, whatever it sees.
+    let text = std::fs::read_to_string(repo_file("policies/a1_eemp_rl.toml")).unwrap();
+    let mut train: eemp_rl::config::TrainConfig = toml::from_str(&text).unwrap();
+    train.eemp_rl = cfg;
+    let policy = eemp_rl::policy::Policy::new(&train).unwrap();
+    let obs: Vec<f32> = (0..train.eemp_rl.obs_dim())
+        .map(|i| (i as f32).sin())
+        .collect();
+    assert!(policy.act(&obs).unwrap().iter().all(|&v| v == 0.0));
+}
+
+#[test]
+fn a_residual_config_with_a_bad_table_or_bounds_is_refused_naming_the_file_and_value() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(repo_file("policies/a1_eemp_rl.toml")).unwrap();
+    let table = repo_file("tables/a1_free.toml").display().to_string();
+    let trot = repo_file("tables/a1_trot.toml").display().to_string();
+    let with = |from: &str, to: &str| text.replace(from, to);
+    let cases = [
+        (
+            with("\"tables/a1_free.toml\"", "\"no/such/table.toml\""),
+            "no/such/table.toml",
+        ),
+        (
+            with("\"tables/a1_free.toml\"", &format!("{trot:?}")),
+            "trot",
+        ),
+        (
+            with("\"tables/a1_free.toml\"", &format!("{table:?}"))
+                .replace("swing_time_s = 0.05", "swing_time_s = 0.2"),
+            "eemp_rl.residual.bounds.swing_time_s",
+        ),
+        (
+            with("\"tables/a1_free.toml\"", &format!("{table:?}"))
+                .replace("body_height_m = 0.01", "body_height_m = -0.01"),
+            "eemp_rl.residual.bounds.body_height_m",
+        ),
+    ];
+    for (i, (config, want)) in cases.iter().enumerate() {
+        let path = dir.path().join(format!("c{i}.toml"));
+        std::fs::write(&path, config).unwrap();
+        let err = eemp_rl::config::TrainConfig::load(&path)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains(want), "case {i}: {err}");
+    }
+    // A table without the selection metrics the reward needs.
+    let stripped: String = std::fs::read_to_string(&table)
+        .unwrap()
+        .lines()
+        .filter(|l| !l.starts_with("cot") && !l.starts_with("manipulability"))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    let bare = dir.path().join("bare.toml");
+    std::fs::write(&bare, stripped).unwrap();
+    let path = dir.path().join("c_bare.toml");
+    std::fs::write(
+        &path,
+        with(
+            "\"tables/a1_free.toml\"",
+            &format!("{:?}", bare.display().to_string()),
+        ),
+    )
+    .unwrap();
+    let err = eemp_rl::config::TrainConfig::load(&path)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("bare.toml") && err.contains("cot"), "{err}");
 }

@@ -31,6 +31,7 @@ fn cart_pole(lr: f64, steps: u64) -> TrainConfig {
             actor_hidden: vec![32, 32],
             critic_hidden: vec![32, 32],
             activation: Activation::Tanh,
+            actor_output_gain: 0.01,
         },
         ..Default::default()
     }
@@ -168,6 +169,7 @@ fn a_resumed_model_free_run_equals_an_uninterrupted_one() {
             actor_hidden: vec![16],
             critic_hidden: vec![16],
             activation: Activation::Elu,
+            actor_output_gain: 0.01,
         },
         model_free: ModelFreeConfig {
             pushes: TrainPushes {
@@ -199,6 +201,7 @@ fn training_on_one_or_two_threads_gives_the_same_policy() {
             actor_hidden: vec![16],
             critic_hidden: vec![16],
             activation: Activation::Elu,
+            actor_output_gain: 0.01,
         },
         ..Default::default()
     };
@@ -293,6 +296,7 @@ fn the_ppo_gradient_matches_finite_differences_on_a_tiny_network() {
         actor_hidden: vec![4],
         critic_hidden: vec![3],
         activation: Activation::Tanh,
+        actor_output_gain: 0.01,
     };
     let mut rng = ChaCha8Rng::seed_from_u64(9);
     let ac = ActorCritic::new(3, 2, &net, 0.7, &mut rng).unwrap();
@@ -429,6 +433,7 @@ fn the_ppo_loss_equals_a_hand_computed_value_with_both_clips_active() {
         actor_hidden: vec![4],
         critic_hidden: vec![3],
         activation: Activation::Tanh,
+        actor_output_gain: 0.01,
     };
     let mut rng = ChaCha8Rng::seed_from_u64(2);
     let ac = ActorCritic::new(3, 2, &net, 0.7, &mut rng).unwrap();

@@ -124,7 +124,9 @@ fn the_shipped_imitation_policy_walks_5_s_at_0_5_m_per_s_in_the_dogs_trot() {
     assert_eq!(c.invalid_steps, 0);
 }
 
-fn shipped_eemp_rl() -> (
+fn shipped_eemp_rl(
+    first_speed_mps: f64,
+) -> (
     RobotConfig,
     eemp_rl::tasks::eemp_rl::EempRlController<Policy>,
     StartPose,
@@ -134,24 +136,24 @@ fn shipped_eemp_rl() -> (
     let path = repo_file("policies/a1_eemp_rl.safetensors");
     let policy = Policy::load(&path, Some(TaskKind::EempRl)).unwrap();
     let cfg = policy.config.eemp_rl.clone();
-    let start = EempRlController::<Policy>::start_pose(&robot, &cfg).unwrap();
+    let start = EempRlController::<Policy>::start_pose(&robot, &cfg, first_speed_mps).unwrap();
     let c = EempRlController::new(&robot, cfg, policy).unwrap();
     (robot, c, start)
 }
 
 #[test]
 fn the_shipped_eemp_rl_policy_walks_5_s_at_0_5_m_per_s() {
-    let (robot, mut c, start) = shipped_eemp_rl();
+    let (robot, mut c, start) = shipped_eemp_rl(0.5);
     let run = run_walk_with(&robot, &walk_spec(0.5, 5.0), &start, &mut c, |_| {}).unwrap();
     assert_walked(&run, 0.1, 1.2);
 }
 
 #[test]
 fn the_shipped_eemp_rl_policy_walks_0_to_1_to_0_m_per_s_in_one_run() {
-    let (robot, mut c, start) = shipped_eemp_rl();
     let profile_file = repo_file("profiles/up-and-down.toml");
     let mut spec = walk_spec(0.0, 20.0);
     spec.profile = eemp_core::config_error::load_toml(&profile_file).unwrap();
+    let (robot, mut c, start) = shipped_eemp_rl(spec.profile.first_speed_mps());
     spec.seed = 1;
     let mut top_speed: f64 = 0.0;
     let run = run_walk_with(&robot, &spec, &start, &mut c, |r| {

@@ -94,6 +94,13 @@ impl VelocityProfile {
         Ok(())
     }
 
+    /// The command of the first segment (what a walk starts towards).
+    pub fn first_speed_mps(&self) -> f64 {
+        self.segments
+            .first()
+            .map_or(0.0, |s| s.vx_mps.hypot(s.vy_mps))
+    }
+
     pub fn command_at(&self, t: f64) -> VelocityCommand {
         self.segments
             .iter()
@@ -393,6 +400,31 @@ pub fn reset_to_start(sim: &mut Simulation, start: &StartPose, seed: u64) {
     }
 }
 
+/// One control step of `record` into `metrics` (eq. 8's energy and distance, the velocity
+/// error, eq. 9 over the `stance` legs), on the simulator's true state: the one place every
+/// walk's metrics, and EEMP-RL's interval reward, are measured.
+pub fn observe_metrics(
+    metrics: &mut MetricsAccumulator,
+    kin: &LegKinematics,
+    dt: f64,
+    record: &StepRecord,
+    stance: &LegMap<bool>,
+) {
+    let cmd = record.command;
+    let qd = record.state.joints.map(|_, j| j.qd);
+    let jac = LegMap::from_fn(|leg| kin.foot_jacobian_body(leg, &record.state.joints[leg].q));
+    metrics.observe(
+        dt,
+        &record.state.body.p_world,
+        &record.state.body.v_heading(),
+        [cmd.vx_mps, cmd.vy_mps],
+        &qd,
+        &record.output.torques,
+        stance,
+        &jac,
+    );
+}
+
 /// Runs a walk under EEMP; `observer` sees every control step.
 pub fn run_walk(
     robot: &RobotConfig,
@@ -485,20 +517,7 @@ pub fn run_walk_commanded(
         }
         was_down = Some(record.loaded);
         if t >= spec.metrics_start_s {
-            let cmd = record.command;
-            let qd = record.state.joints.map(|_, j| j.qd);
-            let jac =
-                LegMap::from_fn(|leg| kin.foot_jacobian_body(leg, &record.state.joints[leg].q));
-            metrics.observe(
-                dt,
-                &record.state.body.p_world,
-                &record.state.body.v_heading(),
-                [cmd.vx_mps, cmd.vy_mps],
-                &qd,
-                &record.output.torques,
-                &stance,
-                &jac,
-            );
+            observe_metrics(&mut metrics, &kin, dt, record, &stance);
         }
         observer(record);
     });

@@ -9,6 +9,7 @@
 pub mod ellipse;
 pub mod gait;
 pub mod params;
+pub mod params_stats;
 pub mod params_table;
 pub mod swing_trajectory;
 pub mod touchdown;
@@ -274,6 +275,7 @@ impl EemPlanner {
                 .collect(),
             feet_horizon_world,
             contacts_horizon,
+            params: Some(*params),
         }
     }
 

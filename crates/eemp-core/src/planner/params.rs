@@ -41,7 +41,58 @@ impl Default for PlannerParams {
     }
 }
 
+/// Table I's range of each parameter, in the order of [`PlannerParams::to_array`].
+pub const TABLE_I_RANGES: [[f64; 2]; 5] = [
+    table_i::SWING_TIME_S,
+    table_i::STEP_HEIGHT_M,
+    table_i::BODY_HEIGHT_M,
+    table_i::ELLIPSE_AXIS_M,
+    table_i::ELLIPSE_AXIS_M,
+];
+
 impl PlannerParams {
+    /// The names of the parameters, in the order of [`PlannerParams::to_array`].
+    pub const NAMES: [&'static str; 5] = [
+        "swing_time_s",
+        "step_height_m",
+        "body_height_m",
+        "ellipse_rx_m",
+        "ellipse_ry_m",
+    ];
+
+    /// [ΔT, h_step, X_z, r_x, r_y].
+    pub fn to_array(&self) -> [f64; 5] {
+        [
+            self.swing_time_s,
+            self.step_height_m,
+            self.body_height_m,
+            self.ellipse_rx_m,
+            self.ellipse_ry_m,
+        ]
+    }
+
+    pub fn from_array(a: [f64; 5]) -> Self {
+        PlannerParams {
+            swing_time_s: a[0],
+            step_height_m: a[1],
+            body_height_m: a[2],
+            ellipse_rx_m: a[3],
+            ellipse_ry_m: a[4],
+        }
+    }
+
+    /// These parameters moved by `delta` (in [`PlannerParams::to_array`]'s order), each clamped
+    /// into Table I; a non-finite component of `delta` counts as 0. With a zero `delta` the
+    /// result is `self`, bit for bit, when `self` is inside Table I.
+    pub fn offset_within_table_i(&self, delta: &[f64; 5]) -> Self {
+        let mut a = self.to_array();
+        for ((v, d), [lo, hi]) in a.iter_mut().zip(delta).zip(TABLE_I_RANGES) {
+            let d = if d.is_finite() { *d } else { 0.0 };
+            *v = (*v + d).clamp(lo, hi);
+        }
+        Self::from_array(a)
+    }
+
     /// Checks every parameter against Table I; the error names the parameter and its range.
     pub fn validate(&self) -> Result<(), ConfigError> {
         use table_i::*;
@@ -82,6 +133,21 @@ impl PlannerParams {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_offset_is_added_and_clamped_into_table_i() {
+        let p = PlannerParams::default();
+        assert_eq!(p.offset_within_table_i(&[0.0; 5]), p);
+        let q = p.offset_within_table_i(&[-0.05, 0.02, 0.1, -0.5, f64::NAN]);
+        // 0.25 − 0.05 = 0.2; 0.10 + 0.02 = 0.12; 0.31 + 0.1 → 0.311 (X_z's top); 0.07 − 0.5 →
+        // 0.01 (the axes' bottom); NaN → unchanged.
+        assert!((q.swing_time_s - 0.2).abs() < 1e-12);
+        assert!((q.step_height_m - 0.12).abs() < 1e-12);
+        assert_eq!(q.body_height_m, 0.311);
+        assert_eq!(q.ellipse_rx_m, 0.01);
+        assert_eq!(q.ellipse_ry_m, p.ellipse_ry_m);
+        assert_eq!(PlannerParams::from_array(p.to_array()), p);
+    }
 
     #[test]
     fn table_ii_defaults_are_valid_and_out_of_range_values_are_named() {

@@ -57,6 +57,11 @@ impl TableEntry {
     }
 }
 
+enum Bracket {
+    One(usize),
+    Between(usize, usize, f64),
+}
+
 /// A per-speed parameter table for one gait (a TOML file: `gait`, `interpolation`, `[[entry]]`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -156,8 +161,13 @@ impl ParamsTable {
         Ok(())
     }
 
-    /// Parameters for a commanded speed (m/s, magnitude of the horizontal command).
-    pub fn lookup(&self, speed_mps: f64) -> PlannerParams {
+    /// Where `speed_mps` falls: one entry (nearest, or outside the table), or between two
+    /// with the weight of the second.
+    fn bracket(&self, speed_mps: f64) -> Bracket {
+        self.bracket_with(speed_mps, self.interpolation)
+    }
+
+    fn bracket_with(&self, speed_mps: f64, interpolation: Interpolation) -> Bracket {
         let e = &self.entries;
         let s = if speed_mps.is_finite() {
             speed_mps
@@ -165,27 +175,45 @@ impl ParamsTable {
             0.0
         };
         if s <= e[0].speed_mps {
-            return e[0].params();
+            return Bracket::One(0);
         }
         if s >= e[e.len() - 1].speed_mps {
-            return e[e.len() - 1].params();
+            return Bracket::One(e.len() - 1);
         }
         let hi = e
             .iter()
             .position(|x| x.speed_mps >= s)
             .expect("inside the table");
         let (a, b) = (&e[hi - 1], &e[hi]);
-        match self.interpolation {
+        match interpolation {
             Interpolation::Nearest => {
                 if s - a.speed_mps <= b.speed_mps - s {
-                    a.params()
+                    Bracket::One(hi - 1)
                 } else {
-                    b.params()
+                    Bracket::One(hi)
                 }
             }
             Interpolation::Linear => {
-                let w = (s - a.speed_mps) / (b.speed_mps - a.speed_mps);
-                let (pa, pb) = (a.params(), b.params());
+                Bracket::Between(hi - 1, hi, (s - a.speed_mps) / (b.speed_mps - a.speed_mps))
+            }
+        }
+    }
+
+    /// The entry nearest to `speed_mps` (the end entries outside the table; ties to the slower).
+    pub fn nearest_entry(&self, speed_mps: f64) -> usize {
+        match self.bracket_with(speed_mps, Interpolation::Nearest) {
+            Bracket::One(i) => i,
+            Bracket::Between(a, _, _) => a,
+        }
+    }
+
+    /// Parameters for a commanded speed (m/s, magnitude of the horizontal command).
+    pub fn lookup(&self, speed_mps: f64) -> PlannerParams {
+        let e = &self.entries;
+        match self.bracket(speed_mps) {
+            Bracket::One(i) => e[i].params(),
+            Bracket::Between(a, b, w) => {
+                let (pa, pb) = (e[a].params(), e[b].params());
                 let mix = |x: f64, y: f64| x + w * (y - x);
                 PlannerParams {
                     swing_time_s: mix(pa.swing_time_s, pb.swing_time_s),
@@ -194,6 +222,20 @@ impl ParamsTable {
                     ellipse_rx_m: mix(pa.ellipse_rx_m, pb.ellipse_rx_m),
                     ellipse_ry_m: mix(pa.ellipse_ry_m, pb.ellipse_ry_m),
                 }
+            }
+        }
+    }
+
+    /// The selection metrics (CoT, manipulability) recorded for a commanded speed, by the same
+    /// rule as [`ParamsTable::lookup`]; None where an entry it uses has none.
+    pub fn metrics_at(&self, speed_mps: f64) -> Option<(f64, f64)> {
+        let e = &self.entries;
+        let m = |i: usize| Some((e[i].cot?, e[i].manipulability?));
+        match self.bracket(speed_mps) {
+            Bracket::One(i) => m(i),
+            Bracket::Between(a, b, w) => {
+                let ((ca, ma), (cb, mb)) = (m(a)?, m(b)?);
+                Some((ca + w * (cb - ca), ma + w * (mb - ma)))
             }
         }
     }

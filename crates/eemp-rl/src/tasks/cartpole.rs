@@ -125,6 +125,7 @@ impl Env for CartPole {
             terminated: self.fell,
             truncated: !self.fell && self.steps >= self.config.max_steps,
             invalid: false,
+            periods: None,
         }
     }
     fn fell(&self) -> bool {

@@ -662,6 +662,7 @@ impl Env for ImitationEnv {
             terminated: ended,
             truncated: !ended && self.steps >= self.max_steps,
             invalid: !state.body.is_finite() || !reward_finite || unstable,
+            periods: None,
         }
     }
 

@@ -179,10 +179,15 @@ pub struct TrainPushes {
 
 impl TrainPushes {
     pub fn validate(&self) -> Result<(), ConfigError> {
+        self.validate_as("model_free.pushes")
+    }
+
+    /// [`TrainPushes::validate`] with the keys named under `prefix`.
+    pub fn validate_as(&self, prefix: &str) -> Result<(), ConfigError> {
         if self.every_s != 0.0 {
-            check_range("model_free.pushes.every_s", self.every_s, 0.5, 3600.0)?;
+            check_range(&format!("{prefix}.every_s"), self.every_s, 0.5, 3600.0)?;
         }
-        check_range("model_free.pushes.max_dv_mps", self.max_dv_mps, 0.0, 2.0)
+        check_range(&format!("{prefix}.max_dv_mps"), self.max_dv_mps, 0.0, 2.0)
     }
 
     /// The pushes of an episode of `episode_s`, drawn from `rng` (none when off).
@@ -962,6 +967,7 @@ impl Env for ModelFreeEnv {
             terminated: fell,
             truncated: !fell && self.steps >= self.max_steps,
             invalid: !state.body.is_finite() || !reward_finite || unstable,
+            periods: None,
         }
     }
 

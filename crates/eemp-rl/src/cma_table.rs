@@ -1,0 +1,457 @@
+//! EEMP-RL's second optimiser (issue 20, part 6): CMA-ES (the `cmaes` crate) on the same
+//! residual task PPO trains on, as Yang et al. (CoRL 2021) tuned gait parameters over a convex
+//! MPC.
+//!
+//! CMA-ES cannot search a 128×128 network's ≈ 20 000 weights (its covariance is n²), so its
+//! policy is the residual's open-loop form: one bounded correction per entry of the table,
+//! x ∈ ℝ^(5 × entries), and at each decision the action is the slice of x of the entry nearest
+//! to the commanded speed (Δ = bounds ⊙ tanh(x), the PPO policy's own squashing). With the
+//! table's nearest-entry look-up this is exactly a re-tuned table, which is what the run writes
+//! (`table.toml`, usable as `eemp walk --gait free --params-table …`).
+//!
+//! Fitness: a candidate's mean undiscounted return over `episodes_per_candidate` episodes of the
+//! EEMP-RL environment (same rewards, worlds, filter, pushes and commands as PPO's), the same
+//! episodes for every candidate of a generation (common random numbers), new ones every
+//! generation. The budget is the config's `total_env_steps` counted in decisions, as for PPO.
+//!
+//! Resume: the CMA-ES state is not serialisable, but the search is deterministic given its seed
+//! and the fitness values, so `checkpoint/evaluations.csv` records every evaluation and a resumed
+//! run replays them (without simulating) up to where the killed one stopped: the result equals an
+//! uninterrupted run's, whatever the thread count.
+
+use crate::config::TrainConfig;
+use crate::tasks::eemp_rl::{EempRlEnv, ACT_DIM};
+use crate::tasks::OnClosedLoop;
+use crate::train::{training_state_source, TrainOptions};
+use cmaes::{CMAESOptions, DVector, Mode};
+use eemp_core::config_error::{check_range, ConfigError};
+use eemp_core::planner::params_table::{Interpolation, ParamsTable, TableEntry};
+use eemp_core::robot::RobotConfig;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use std::collections::HashMap;
+use std::io::Write;
+use std::path::Path;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Mutex;
+use std::time::Instant;
+
+/// `[cmaes]` of a training config with `optimizer = "cmaes"`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CmaesConfig {
+    /// Candidates per generation; 0: CMA-ES's default 4 + ⌊3 ln n⌋.
+    pub population: usize,
+    /// Episodes each candidate runs per generation (the same ones for every candidate).
+    pub episodes_per_candidate: usize,
+    /// Initial step size in the action's units (Δ = bounds ⊙ tanh(x); x starts at 0, the table).
+    pub initial_sigma: f64,
+}
+
+impl Default for CmaesConfig {
+    fn default() -> Self {
+        CmaesConfig {
+            population: 0,
+            episodes_per_candidate: 8,
+            initial_sigma: 0.5,
+        }
+    }
+}
+
+impl CmaesConfig {
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        if self.population != 0 {
+            check_range("cmaes.population", self.population as f64, 4.0, 4096.0)?;
+        }
+        check_range(
+            "cmaes.episodes_per_candidate",
+            self.episodes_per_candidate as f64,
+            1.0,
+            4096.0,
+        )?;
+        check_range("cmaes.initial_sigma", self.initial_sigma, 1e-3, 3.0)
+    }
+}
+
+/// One generation's line of `cmaes.csv`.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct GenerationLog {
+    pub generation: usize,
+    /// Decisions taken so far (PPO's `env_steps`).
+    pub env_steps: u64,
+    pub wall_s: f64,
+    /// Mean fitness (mean episode return) of the generation's candidates.
+    pub mean_return: f64,
+    pub best_return: f64,
+    pub sigma: f64,
+    pub episodes: usize,
+    pub falls: usize,
+}
+
+const CSV_HEADER: &str =
+    "generation,env_steps,wall_s,mean_return,best_return,sigma,episodes,falls\n";
+
+/// One candidate's evaluation.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Evaluation {
+    fitness: f64,
+    steps: u64,
+    falls: usize,
+}
+
+/// The exact bits of a candidate: a replayed search proposes bit-identical ones.
+fn key(x: &DVector<f64>) -> String {
+    x.iter().map(|v| format!("{:016x}", v.to_bits())).collect()
+}
+
+/// The table the candidate `x` stands for: each entry corrected by Δ = bounds ⊙ tanh(x_entry),
+/// clipped to Table I; metrics dropped (they were the original's).
+pub fn corrected_table(table: &ParamsTable, bounds: &[f64; 5], x: &[f64]) -> ParamsTable {
+    let entries = table
+        .entries
+        .iter()
+        .enumerate()
+        .map(|(k, e)| {
+            let delta: [f64; 5] = std::array::from_fn(|i| bounds[i] * x[5 * k + i].tanh());
+            TableEntry::new(e.speed_mps, &e.params().offset_within_table_i(&delta))
+        })
+        .collect();
+    ParamsTable {
+        entries,
+        ..table.clone()
+    }
+}
+
+/// Checks that `config` is one CMA-ES can run: EEMP-RL, residual, nearest-entry table.
+pub fn check_config(config: &TrainConfig) -> Result<(), ConfigError> {
+    let invalid = |message: &str| ConfigError::Invalid {
+        name: "optimizer".into(),
+        message: message.into(),
+    };
+    if config.task != crate::config::TaskKind::EempRl {
+        return Err(invalid(&format!(
+            "\"cmaes\" trains EEMP-RL's residual, not task {} (allowed: \"ppo\")",
+            config.task.name()
+        )));
+    }
+    let Some(r) = &config.eemp_rl.residual else {
+        return Err(invalid(
+            "\"cmaes\" needs [eemp_rl.residual] (the absolute form has no table to correct)",
+        ));
+    };
+    if let Some(t) = &r.table {
+        if t.interpolation != Interpolation::Nearest {
+            return Err(ConfigError::Invalid {
+                name: r.table_file.display().to_string(),
+                message: "CMA-ES corrects each entry: the table's interpolation must be \
+                          \"nearest\" (allowed: \"nearest\")"
+                    .into(),
+            });
+        }
+    }
+    config.cmaes.validate()
+}
+
+/// Runs CMA-ES on EEMP-RL's residual; writes `cmaes.csv`, `checkpoint/evaluations.csv`,
+/// `table.toml` (the distribution's mean, the usual answer on a noisy objective) and
+/// `config.toml` in `opts.out`, and calls `on_generation` after each generation.
+pub fn train_cmaes(
+    config: &TrainConfig,
+    robot: &RobotConfig,
+    opts: &TrainOptions,
+    on_generation: &mut dyn FnMut(&GenerationLog),
+) -> Result<ParamsTable, String> {
+    check_config(config).map_err(|e| e.to_string())?;
+    let residual = config.eemp_rl.residual.as_ref().expect("checked");
+    let table = residual
+        .table
+        .clone()
+        .ok_or("the residual's table is not read")?;
+    let bounds = residual.bounds.to_array();
+    let dim = ACT_DIM * table.entries.len();
+    let cfg = &config.cmaes;
+    std::fs::create_dir_all(opts.out.join("checkpoint"))
+        .map_err(|e| format!("cannot create {}: {e}", opts.out.display()))?;
+    let cache_path = opts.out.join("checkpoint").join("evaluations.csv");
+    let cache = if opts.resume {
+        read_cache(&cache_path)?
+    } else {
+        HashMap::new()
+    };
+    let mut cache_file = open_append(&cache_path, !opts.resume)?;
+    let mut log_file = std::fs::File::create(opts.out.join("cmaes.csv"))
+        .map_err(|e| format!("cannot write cmaes.csv: {e}"))?;
+    log_file
+        .write_all(CSV_HEADER.as_bytes())
+        .map_err(|e| e.to_string())?;
+
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(opts.threads.max(1))
+        .build()
+        .map_err(|e| e.to_string())?;
+    let generation = AtomicUsize::new(0);
+    let fresh: Mutex<HashMap<(usize, String), Evaluation>> = Mutex::new(HashMap::new());
+    let failure: Mutex<Option<String>> = Mutex::new(None);
+    let objective = |x: &DVector<f64>| -> f64 {
+        let g = generation.load(Ordering::SeqCst);
+        let k = key(x);
+        if let Some(e) = cache.get(&(g, k.clone())) {
+            fresh.lock().expect("no panic").insert((g, k), e.0);
+            return e.0.fitness;
+        }
+        match evaluate(config, robot, &table, x.as_slice(), g) {
+            Ok(e) => {
+                fresh.lock().expect("no panic").insert((g, k), e);
+                e.fitness
+            }
+            Err(err) => {
+                *failure.lock().expect("no panic") = Some(err);
+                f64::NAN
+            }
+        }
+    };
+    let mut options = CMAESOptions::new(vec![0.0; dim], cfg.initial_sigma)
+        .mode(Mode::Maximize)
+        .seed(config.seed)
+        .max_function_evals(usize::MAX)
+        .tol_stagnation(usize::MAX);
+    if cfg.population != 0 {
+        options = options.population_size(cfg.population);
+    }
+    let mut cma = options
+        .build(&objective)
+        .map_err(|e| format!("CMA-ES options: {e:?}"))?;
+    let started = Instant::now();
+    let mut log = GenerationLog::default();
+    let mut replayed_wall = 0.0;
+    while log.env_steps < config.total_env_steps {
+        let g = cma.generation();
+        generation.store(g, Ordering::SeqCst);
+        let stop = pool.install(|| cma.next_parallel());
+        if let Some(err) = failure.lock().expect("no panic").take() {
+            return Err(err);
+        }
+        let mut evals: Vec<((usize, String), Evaluation)> = fresh
+            .lock()
+            .expect("no panic")
+            .drain()
+            .filter(|((gen, _), _)| *gen == g)
+            .collect();
+        // In key order: logs and sums the same whatever order the threads finished in.
+        evals.sort_by(|a, b| a.0.cmp(&b.0));
+        let was_cached = evals.iter().all(|(k, _)| cache.contains_key(k));
+        let wall_s = match was_cached {
+            true => {
+                replayed_wall = evals
+                    .iter()
+                    .filter_map(|(k, _)| cache.get(k).map(|c| c.1))
+                    .fold(0.0, f64::max);
+                replayed_wall
+            }
+            false => replayed_wall + started.elapsed().as_secs_f64(),
+        };
+        if !was_cached {
+            for ((gen, k), e) in &evals {
+                writeln!(
+                    cache_file,
+                    "{gen},{k},{:?},{},{},{wall_s:?}",
+                    e.fitness, e.steps, e.falls
+                )
+                .map_err(|e| format!("cannot write {}: {e}", cache_path.display()))?;
+            }
+            cache_file.flush().map_err(|e| e.to_string())?;
+        }
+        let fitness: Vec<f64> = evals.iter().map(|(_, e)| e.fitness).collect();
+        log = GenerationLog {
+            generation: g + 1,
+            env_steps: log.env_steps + evals.iter().map(|(_, e)| e.steps).sum::<u64>(),
+            wall_s,
+            mean_return: fitness.iter().sum::<f64>() / fitness.len().max(1) as f64,
+            best_return: fitness.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+            sigma: cma.sigma(),
+            episodes: evals.len() * cfg.episodes_per_candidate,
+            falls: evals.iter().map(|(_, e)| e.falls).sum(),
+        };
+        writeln!(
+            log_file,
+            "{},{},{:.3},{:?},{:?},{:?},{},{}",
+            log.generation,
+            log.env_steps,
+            log.wall_s,
+            log.mean_return,
+            log.best_return,
+            log.sigma,
+            log.episodes,
+            log.falls
+        )
+        .and_then(|_| log_file.flush())
+        .map_err(|e| format!("cannot write cmaes.csv: {e}"))?;
+        let out = corrected_table(&table, &bounds, cma.mean().as_slice());
+        write_table(&opts.out.join("table.toml"), &out, config, &log)?;
+        on_generation(&log);
+        if let Some(t) = stop {
+            eprintln!(
+                "note: CMA-ES stopped at generation {} ({:?})",
+                log.generation, t.reasons
+            );
+            break;
+        }
+    }
+    std::fs::write(
+        opts.out.join("config.toml"),
+        toml::to_string(config).map_err(|e| e.to_string())?,
+    )
+    .map_err(|e| format!("cannot write config.toml: {e}"))?;
+    Ok(corrected_table(&table, &bounds, cma.mean().as_slice()))
+}
+
+/// Candidate `x`'s fitness in generation `g`: the mean return of its episodes.
+fn evaluate(
+    config: &TrainConfig,
+    robot: &RobotConfig,
+    table: &ParamsTable,
+    x: &[f64],
+    g: usize,
+) -> Result<Evaluation, String> {
+    let n = config.cmaes.episodes_per_candidate;
+    let results: Vec<Result<(f64, u64, bool), String>> = (0..n)
+        .into_par_iter()
+        .map(|e| run_episode(config, robot, table, x, g * n + e))
+        .collect();
+    let mut total = Evaluation {
+        fitness: 0.0,
+        steps: 0,
+        falls: 0,
+    };
+    for r in results {
+        let (ret, steps, fell) = r?;
+        total.fitness += ret / n as f64;
+        total.steps += steps;
+        total.falls += fell as usize;
+    }
+    Ok(total)
+}
+
+/// Episode `index` of the run (its world, filter noise, start, commands and pushes fixed by the
+/// config's seed and `index`) under the correction `x`: (return, decisions, fell).
+fn run_episode(
+    config: &TrainConfig,
+    robot: &RobotConfig,
+    table: &ParamsTable,
+    x: &[f64],
+    index: usize,
+) -> Result<(f64, u64, bool), String> {
+    let mut env = match &config.eemp_rl.worlds {
+        Some(w) => EempRlEnv::in_world(robot, &w.draw(config.seed, index), config.eemp_rl.clone())?,
+        None => {
+            let model = eemp_sim::backend::build_model(robot, &Default::default())
+                .map_err(|e| e.to_string())?;
+            EempRlEnv::new(robot, model, config.eemp_rl.clone())?
+        }
+    };
+    env.set_state_source(&training_state_source(config, robot, index as u64))?;
+    let mut rng = ChaCha8Rng::seed_from_u64(
+        config
+            .seed
+            .wrapping_mul(0xC3A5_C85C_97CB_3127)
+            .wrapping_add(index as u64),
+    );
+    use crate::env::Env;
+    let fall_penalty = config
+        .eemp_rl
+        .residual
+        .as_ref()
+        .map_or(0.0, |r| r.rewards.fall);
+    let mut obs = vec![0f32; env.obs_dim()];
+    let mut terms = vec![0f64; env.reward_terms().len()];
+    env.reset(&mut rng, &mut obs);
+    let (mut ret, mut steps) = (0.0, 0u64);
+    loop {
+        let k = table.nearest_entry(env.commanded_speed_mps());
+        let action: [f32; ACT_DIM] = std::array::from_fn(|i| x[ACT_DIM * k + i] as f32);
+        let info = env.step(&action, &mut rng, &mut obs, &mut terms);
+        // A non-finite reward (an unstable simulation) counts as the fall it ends in.
+        ret += match info.reward.is_finite() {
+            true => info.reward,
+            false => -fall_penalty,
+        };
+        steps += 1;
+        if info.invalid {
+            return Ok((ret, steps, true));
+        }
+        if info.terminated || info.truncated {
+            return Ok((ret, steps, info.terminated));
+        }
+    }
+}
+
+type Cache = HashMap<(usize, String), (Evaluation, f64)>;
+
+fn read_cache(path: &Path) -> Result<Cache, String> {
+    let text = match std::fs::read_to_string(path) {
+        Ok(t) => t,
+        Err(_) => {
+            eprintln!(
+                "note: no evaluations in {}; starting from scratch",
+                path.display()
+            );
+            return Ok(HashMap::new());
+        }
+    };
+    let mut out = HashMap::new();
+    for (n, line) in text.lines().enumerate() {
+        let f: Vec<&str> = line.split(',').collect();
+        let bad = || format!("{} line {}: not an evaluation row", path.display(), n + 1);
+        // A row cut by a kill is dropped: that evaluation runs again.
+        if f.len() != 6 {
+            continue;
+        }
+        let parse = |s: &str| s.parse::<f64>().map_err(|_| bad());
+        let e = Evaluation {
+            fitness: parse(f[2])?,
+            steps: f[3].parse().map_err(|_| bad())?,
+            falls: f[4].parse().map_err(|_| bad())?,
+        };
+        out.insert(
+            (f[0].parse().map_err(|_| bad())?, f[1].to_string()),
+            (e, parse(f[5])?),
+        );
+    }
+    Ok(out)
+}
+
+fn open_append(path: &Path, truncate: bool) -> Result<std::fs::File, String> {
+    std::fs::OpenOptions::new()
+        .create(true)
+        .append(!truncate)
+        .write(true)
+        .truncate(truncate)
+        .open(path)
+        .map_err(|e| format!("cannot write {}: {e}", path.display()))
+}
+
+fn write_table(
+    path: &Path,
+    table: &ParamsTable,
+    config: &TrainConfig,
+    log: &GenerationLog,
+) -> Result<(), String> {
+    let text = format!(
+        "# EEMP-RL by CMA-ES (issue 20, part 6): the residual's table ({}) re-tuned, each entry\n\
+         # corrected by the search distribution's mean after generation {} ({} decisions, seed {}).\n\
+         # Use: eemp walk --gait free --params-table <this file>\n{}",
+        config
+            .eemp_rl
+            .residual
+            .as_ref()
+            .map(|r| r.table_file.display().to_string())
+            .unwrap_or_default(),
+        log.generation,
+        log.env_steps,
+        config.seed,
+        table.to_toml()
+    );
+    std::fs::write(path, text).map_err(|e| format!("cannot write {}: {e}", path.display()))
+}
