@@ -336,3 +336,105 @@ fn a_residual_config_with_a_bad_table_or_bounds_is_refused_naming_the_file_and_v
         .to_string();
     assert!(err.contains("bare.toml") && err.contains("cot"), "{err}");
 }
+
+/// The shipped CMA-ES config, shrunk to a run of seconds: 4 candidates × 1 episode of 1 s.
+fn tiny_cmaes_config() -> eemp_rl::config::TrainConfig {
+    let text = std::fs::read_to_string(repo_file("policies/a1_eemp_rl_cmaes.toml")).unwrap();
+    let mut c: eemp_rl::config::TrainConfig = toml::from_str(&text).unwrap();
+    assert_eq!(c.optimizer, eemp_rl::config::Optimizer::Cmaes);
+    c.eemp_rl = residual_config(1.0);
+    c.cmaes.population = 4;
+    c.cmaes.episodes_per_candidate = 1;
+    c.total_env_steps = 16;
+    c.validate().unwrap();
+    c
+}
+
+#[test]
+fn cmaes_corrects_each_entry_within_its_bounds_and_table_i() {
+    use eemp_rl::cma_table::corrected_table;
+    let table = ParamsTable::load(&repo_file("tables/a1_free.toml")).unwrap();
+    let bounds = [0.05, 0.03, 0.01, 0.04, 0.04];
+    let n = 5 * table.entries.len();
+    // x = 0 is the table itself (its selection metrics dropped: they were measured for it).
+    let same = corrected_table(&table, &bounds, &vec![0.0; n]);
+    for (a, b) in same.entries.iter().zip(&table.entries) {
+        assert_eq!(a.params(), b.params());
+        assert_eq!(a.cot, None);
+    }
+    // Any x stays within ±bounds of the entry and inside Table I.
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    for _ in 0..200 {
+        let x: Vec<f64> = (0..n).map(|_| rng.random_range(-20.0..20.0)).collect();
+        let t = corrected_table(&table, &bounds, &x);
+        t.validate().unwrap();
+        for (a, b) in t.entries.iter().zip(&table.entries) {
+            for (i, (va, vb)) in as_array(&a.params())
+                .iter()
+                .zip(as_array(&b.params()))
+                .enumerate()
+            {
+                assert!((va - vb).abs() <= bounds[i] + 1e-12, "{va} vs {vb}");
+                assert!(*va >= RANGES[i][0] && *va <= RANGES[i][1]);
+            }
+        }
+    }
+}
+
+#[test]
+fn cmaes_needs_the_residual_on_a_nearest_table_and_a_resumed_run_replays_to_the_same_table() {
+    use eemp_rl::cma_table::train_cmaes;
+    use eemp_rl::train::TrainOptions;
+    let mut absolute = tiny_cmaes_config();
+    absolute.eemp_rl.residual = None;
+    let e = absolute.validate().unwrap_err().to_string();
+    assert!(e.contains("optimizer") && e.contains("residual"), "{e}");
+    let mut ppo_task = tiny_cmaes_config();
+    ppo_task.task = eemp_rl::config::TaskKind::ModelFree;
+    assert!(ppo_task.validate().is_err());
+
+    let config = tiny_cmaes_config();
+    let robot = RobotConfig::a1();
+    let dir = tempfile::tempdir().unwrap();
+    let run = |out: &std::path::Path, resume: bool, threads: usize| {
+        let opts = TrainOptions {
+            out: out.to_path_buf(),
+            resume,
+            threads,
+            max_iterations: None,
+        };
+        let mut generations = 0;
+        let t = train_cmaes(&config, &robot, &opts, &mut |_| generations += 1).unwrap();
+        (t, generations)
+    };
+    let (whole, gens) = run(&dir.path().join("a"), false, 2);
+    assert!(gens >= 2, "{gens} generations");
+    // The distribution moved: the table changed.
+    let table = ParamsTable::load(&repo_file("tables/a1_free.toml")).unwrap();
+    assert!(whole
+        .entries
+        .iter()
+        .zip(&table.entries)
+        .any(|(a, b)| a.params() != b.params()));
+    // A run killed after its first generation (its cache cut there) resumes to the same table,
+    // on one thread.
+    let b = dir.path().join("b");
+    std::fs::create_dir_all(b.join("checkpoint")).unwrap();
+    let cache = std::fs::read_to_string(dir.path().join("a/checkpoint/evaluations.csv")).unwrap();
+    let first: String = cache
+        .lines()
+        .filter(|l| l.starts_with("0,"))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    assert_eq!(first.lines().count(), 4);
+    std::fs::write(b.join("checkpoint/evaluations.csv"), first).unwrap();
+    let (resumed, _) = run(&b, true, 1);
+    assert_eq!(resumed, whole);
+    assert_eq!(
+        std::fs::read_to_string(b.join("cmaes.csv"))
+            .unwrap()
+            .lines()
+            .count(),
+        gens + 1
+    );
+}
