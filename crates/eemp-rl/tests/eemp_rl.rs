@@ -15,13 +15,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 fn as_array(p: &PlannerParams) -> [f64; 5] {
-    [
-        p.swing_time_s,
-        p.step_height_m,
-        p.body_height_m,
-        p.ellipse_rx_m,
-        p.ellipse_ry_m,
-    ]
+    p.to_array()
 }
 
 #[test]
