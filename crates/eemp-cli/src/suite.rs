@@ -44,9 +44,9 @@ pub struct MethodConfig {
     /// method on ground truth beside it on the filter).
     #[serde(default)]
     pub estimator: Option<String>,
-    /// EEMP: lower the MPC's friction coefficient after slips (`eemp_core::slip`).
+    /// EEMP: slip handling (`eemp_core::slip`); absent: its default (on).
     #[serde(default)]
-    pub adapt_friction: bool,
+    pub adapt_friction: Option<bool>,
     /// On the filter: its velocity-jump threshold, m/s (`KfConfig::velocity_jump_mps`; 0: off;
     /// absent: the filter's default).
     #[serde(default)]
@@ -192,6 +192,22 @@ pub struct SuiteRow {
     pub ellipse_rx_m: Option<f64>,
     #[serde(default)]
     pub ellipse_ry_m: Option<f64>,
+    /// Energy beside eq. 8 (`WalkMetrics`): the joints' negative share of their absolute work
+    /// and the CoT of the absolute joint power.
+    #[serde(default)]
+    pub negative_work_share: Option<f64>,
+    #[serde(default)]
+    pub cot_abs_power: Option<f64>,
+    /// The gait walked (`GaitMeasure`): diagonal and lateral pairs sharing their contact state,
+    /// (left − right) / (left + right) of the feet's load, the smallest duty factor.
+    #[serde(default)]
+    pub diagonal_pairs_together: Option<f64>,
+    #[serde(default)]
+    pub lateral_pairs_together: Option<f64>,
+    #[serde(default)]
+    pub left_right_imbalance: Option<f64>,
+    #[serde(default)]
+    pub duty_factor_min: Option<f64>,
 }
 
 impl SuiteRow {
@@ -218,7 +234,7 @@ impl SuiteRow {
 
 pub const RESULTS: &str = "results.csv";
 /// The columns of `results.csv` (the fields of [`SuiteRow`]).
-const HEADER: &str = "run_id,method,scenario,speed_mps,seed,fell,fell_at_s,vel_rmse_mps,cot,manipulability,distance_m,steps_total,wall_s,error,swing_time_s,step_height_m,body_height_m,ellipse_rx_m,ellipse_ry_m";
+const HEADER: &str = "run_id,method,scenario,speed_mps,seed,fell,fell_at_s,vel_rmse_mps,cot,manipulability,distance_m,steps_total,wall_s,error,swing_time_s,step_height_m,body_height_m,ellipse_rx_m,ellipse_ry_m,negative_work_share,cot_abs_power,diagonal_pairs_together,lateral_pairs_together,left_right_imbalance,duty_factor_min";
 pub const CONFIG: &str = "suite.toml";
 
 impl SuiteConfig {
@@ -300,7 +316,7 @@ impl SuiteConfig {
                 }
                 k @ ("model-free" | "imitation" | "eemp-rl") => {
                     for (set, key) in [
-                        (m.adapt_friction, "adapt_friction"),
+                        (m.adapt_friction.is_some(), "adapt_friction"),
                         (m.free_pairing.is_some(), "free_pairing"),
                     ] {
                         if set {
@@ -454,7 +470,9 @@ pub fn simulate(
                 .clone()
                 .unwrap_or_else(|| format!("tables/a1_{gait}.toml").into());
             spec.params_table = Some(ParamsTable::load(&t).map_err(|e| e.to_string())?);
-            spec.controller.slip.adapt_friction = m.adapt_friction;
+            if let Some(on) = m.adapt_friction {
+                spec.controller.slip.adapt_friction = on;
+            }
             let mut c = eemp_controller(robot, &spec).map_err(|e| e.to_string())?;
             let start = StartPose::eemp(robot, &spec).map_err(|e| e.to_string())?;
             run_walk_with(robot, &spec, &start, &mut c, &mut observe)
@@ -502,6 +520,14 @@ pub fn simulate(
         ..Default::default()
     };
     row.set_params_mean(params.mean().map(|p| p.to_array()));
+    row.negative_work_share = walk.metrics.negative_work_share;
+    row.cot_abs_power = walk.metrics.cot_abs_power;
+    if let Some(g) = &walk.gait {
+        row.diagonal_pairs_together = Some(g.diagonal_pairs_together);
+        row.lateral_pairs_together = Some(g.lateral_pairs_together);
+        row.left_right_imbalance = Some(g.left_right_imbalance);
+        row.duty_factor_min = g.duty_factor.values().copied().reduce(f64::min);
+    }
     Ok(row)
 }
 

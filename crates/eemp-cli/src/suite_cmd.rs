@@ -30,6 +30,12 @@ pub struct Cell {
     pub cot: Stat,
     pub manipulability: Stat,
     pub vel_rmse: Stat,
+    pub negative_work_share: Stat,
+    pub cot_abs_power: Stat,
+    pub diagonal_together: Stat,
+    pub lateral_together: Stat,
+    pub left_right_imbalance: Stat,
+    pub duty_factor_min: Stat,
 }
 
 #[derive(Clone, Debug, Default)]
@@ -58,8 +64,126 @@ impl Stat {
     }
 }
 
+/// The line a reader wants first: EEMP's CoT lead (1 − CoT_EEMP / CoT_method) over every
+/// model-free method, per speed at ≤ 0.6 m/s and on average (the paper's 50.4 %).
+fn lead_section(
+    md: &mut String,
+    cfg: &SuiteConfig,
+    speeds: &[f64],
+    cells: &BTreeMap<CellKey, Cell>,
+    key: &dyn Fn(&str, f64) -> CellKey,
+) {
+    let Some(e) = cfg.methods.iter().find(|m| m.kind == "eemp") else {
+        return;
+    };
+    let rivals: Vec<&MethodConfig> = cfg
+        .methods
+        .iter()
+        .filter(|m| m.kind == "model-free")
+        .collect();
+    if rivals.is_empty() {
+        return;
+    }
+    let cot = |m: &str, v: f64| {
+        cells
+            .get(&key(m, v))
+            .map(|c| c.cot.mean())
+            .unwrap_or(f64::NAN)
+    };
+    let _ = writeln!(
+        md,
+        "## EEMP's lead in CoT over model-free RL (paper: 50.4 % at ≤ 0.6 m/s)\n\n\
+         1 − CoT({}) / CoT(method), CoT of eq. 8 (positive mechanical power per distance, \
+         dimensionless), means over the seeds that did not fall.\n",
+        e.name
+    );
+    let head: Vec<String> = rivals.iter().map(|m| format!("over {}", m.name)).collect();
+    let _ = writeln!(md, "| speed m/s | {} |", head.join(" | "));
+    let _ = writeln!(md, "|---|{}", "---|".repeat(rivals.len()));
+    let mut sums = vec![(0.0, 0usize); rivals.len()];
+    for &v in speeds.iter().filter(|v| **v <= 0.6 + 1e-9) {
+        let cols: Vec<String> = rivals
+            .iter()
+            .zip(sums.iter_mut())
+            .map(|(m, s)| {
+                let lead = 1.0 - cot(&e.name, v) / cot(&m.name, v);
+                if lead.is_finite() {
+                    s.0 += lead;
+                    s.1 += 1;
+                    format!("{:.1} %", 100.0 * lead)
+                } else {
+                    "–".into()
+                }
+            })
+            .collect();
+        let _ = writeln!(md, "| {v:.2} | {} |", cols.join(" | "));
+    }
+    let means: Vec<String> = sums
+        .iter()
+        .map(|(s, n)| match n {
+            0 => "–".into(),
+            n => format!("**{:.1} %**", 100.0 * s / *n as f64),
+        })
+        .collect();
+    let _ = writeln!(md, "| mean | {} |\n", means.join(" | "));
+}
+
+/// What gait each method walks and how much of its joints' work is negative, averaged over
+/// the speeds (`GaitMeasure`, `WalkMetrics`).
+fn gait_section(
+    md: &mut String,
+    cfg: &SuiteConfig,
+    speeds: &[f64],
+    cells: &BTreeMap<CellKey, Cell>,
+    key: &dyn Fn(&str, f64) -> CellKey,
+) {
+    let _ = writeln!(
+        md,
+        "## Gait and energy of each method\n\n\
+         Means over the speeds (and the seeds that did not fall): the fraction of time the \
+         diagonal pairs (FR–RL, FL–RR) and the lateral pairs (FR–RR, FL–RL) share their contact \
+         state, the left/right imbalance of the feet's load ((L − R)/(L + R)), the smallest \
+         duty factor of the four feet, the joints' negative share of their absolute work, and \
+         the CoT of the absolute joint power (Σ|τq̇|, Fu et al. 2021) beside eq. 8's.\n"
+    );
+    let _ = writeln!(
+        md,
+        "| method | diagonal together | lateral together | left/right imbalance | min duty factor | negative work share | CoT eq. 8 | CoT abs. power |"
+    );
+    let _ = writeln!(md, "|---|---|---|---|---|---|---|---|");
+    for m in &cfg.methods {
+        let avg = |f: fn(&Cell) -> &Stat| {
+            let v: Vec<f64> = speeds
+                .iter()
+                .filter_map(|&s| cells.get(&key(&m.name, s)).map(|c| f(c).mean()))
+                .filter(|x| x.is_finite())
+                .collect();
+            match v.is_empty() {
+                true => "–".to_string(),
+                false => format!("{:.3}", v.iter().sum::<f64>() / v.len() as f64),
+            }
+        };
+        let _ = writeln!(
+            md,
+            "| {} | {} | {} | {} | {} | {} | {} | {} |",
+            m.name,
+            avg(|c| &c.diagonal_together),
+            avg(|c| &c.lateral_together),
+            avg(|c| &c.left_right_imbalance),
+            avg(|c| &c.duty_factor_min),
+            avg(|c| &c.negative_work_share),
+            avg(|c| &c.cot),
+            avg(|c| &c.cot_abs_power),
+        );
+    }
+    let _ = writeln!(md);
+}
+
+/// (method, scenario, speed in mm/s).
+type CellKey = (String, String, i64);
+
 /// Cells keyed by (method, scenario, speed in mm/s).
-pub fn aggregate(rows: &[SuiteRow]) -> BTreeMap<(String, String, i64), Cell> {
+pub fn aggregate(rows: &[SuiteRow]) -> BTreeMap<CellKey, Cell> {
     let mut m: BTreeMap<(String, String, i64), Cell> = BTreeMap::new();
     for r in rows {
         let key = (
@@ -76,6 +200,12 @@ pub fn aggregate(rows: &[SuiteRow]) -> BTreeMap<(String, String, i64), Cell> {
         c.cot.push(r.cot);
         c.manipulability.push(r.manipulability);
         c.vel_rmse.push(r.vel_rmse_mps);
+        c.negative_work_share.push(r.negative_work_share);
+        c.cot_abs_power.push(r.cot_abs_power);
+        c.diagonal_together.push(r.diagonal_pairs_together);
+        c.lateral_together.push(r.lateral_pairs_together);
+        c.left_right_imbalance.push(r.left_right_imbalance);
+        c.duty_factor_min.push(r.duty_factor_min);
     }
     m
 }
@@ -402,6 +532,8 @@ pub fn compare(args: &SuiteArgs) -> Result<(), String> {
             curves.join(", ")
         }
     );
+    lead_section(&mut md, &cfg, &speeds, &cells, &key);
+    gait_section(&mut md, &cfg, &speeds, &cells, &key);
     let _ = writeln!(md, "## Per speed\n");
     let _ = writeln!(
         md,
@@ -484,16 +616,17 @@ pub fn compare(args: &SuiteArgs) -> Result<(), String> {
             "| {e} best at ≤ 0.6 m/s in CoT, manipulability and velocity tracking | best CoT at {} of {} speeds, best manipulability at {}, best tracking at {} (a speed with a fall counts as lost; it fell in {falls} of its {runs} runs there) |",
             best[0], low.len(), best[1], best[2]
         );
-        if let Some(mf) = &mf {
+        for mf in cfg.methods.iter().filter(|m| m.kind == "model-free") {
             let imp: Vec<f64> = low
                 .iter()
-                .map(|&v| 1.0 - mean_of(e, v, |c| &c.cot) / mean_of(mf, v, |c| &c.cot))
+                .map(|&v| 1.0 - mean_of(e, v, |c| &c.cot) / mean_of(&mf.name, v, |c| &c.cot))
                 .filter(|x| x.is_finite())
                 .collect();
             let mean = imp.iter().sum::<f64>() / imp.len().max(1) as f64;
             let _ = writeln!(
                 md,
-                "| CoT improvement of EEMP over model-free RL at ≤ 0.6 m/s: 50.4 % | {:.1} % (mean over {} speeds of 1 − CoT_EEMP / CoT_model-free) |",
+                "| CoT improvement of EEMP over model-free RL at ≤ 0.6 m/s: 50.4 % | over {}: {:.1} % (mean over {} speeds of 1 − CoT_EEMP / CoT_model-free) |",
+                mf.name,
                 100.0 * mean,
                 imp.len()
             );
@@ -569,21 +702,22 @@ fn rl_against_table<'a>(
     cell: &CellOf<'a>,
     md: &mut String,
 ) {
-    let free_table = |m: &&MethodConfig| {
+    // The table's walk with the controller EEMP-RL runs (no slip handling, as it was trained)
+    // where the suite has it, else the free gait's default.
+    let free_table = |m: &&MethodConfig, slip: Option<bool>| {
         m.kind == "eemp"
             && m.gait.as_deref() == Some("free")
-            && !m.adapt_friction
+            && m.adapt_friction == slip
             && m.free_pairing.is_none()
             && m.kf_velocity_jump_mps.is_none()
             && m.kf_leg_outlier_mps.is_none()
     };
     let mut lines = Vec::new();
     for r in cfg.methods.iter().filter(|m| m.kind == "eemp-rl") {
-        let Some(t) = cfg
-            .methods
-            .iter()
-            .filter(free_table)
-            .find(|t| t.estimator(cfg) == r.estimator(cfg))
+        let same = |t: &&MethodConfig| t.estimator(cfg) == r.estimator(cfg);
+        let Some(t) = [Some(false), None]
+            .into_iter()
+            .find_map(|slip| cfg.methods.iter().find(|t| free_table(t, slip) && same(t)))
         else {
             continue;
         };

@@ -99,8 +99,12 @@ pub struct WalkArgs {
     /// (`FreePairing::UNPAIRED`; EEMP-RL's shipped policy was trained with it).
     #[arg(long, conflicts_with_all = ["free_pair_tolerance", "free_support_margin"])]
     pub free_unpaired: bool,
-    /// Lower the MPC's friction coefficient when a loaded stance foot slides (`eemp_core::slip`;
-    /// helps on floors less grippy than assumed, hurts recovery from pushes).
+    /// Keep the MPC's friction coefficient fixed: no slip handling (`eemp_core::slip`, on by
+    /// default for the trot and the free gait: a sliding stance foot lowers the coefficient, a
+    /// holding one raises it).
+    #[arg(long, conflicts_with = "adapt_friction")]
+    pub no_adapt_friction: bool,
+    /// Slip handling on whatever the gait (the walk's default is off).
     #[arg(long)]
     pub adapt_friction: bool,
     /// MPC horizon, steps of its dt (default: MpcConfig's 10).
@@ -166,9 +170,9 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
             args.controller
         ));
     }
-    if args.adapt_friction && args.controller != "eemp" {
+    if (args.no_adapt_friction || args.adapt_friction) && args.controller != "eemp" {
         return Err(format!(
-            "--adapt-friction is for --controller eemp, not {} (a policy runs with the \
+            "--no-adapt-friction and --adapt-friction are for --controller eemp, not {} (a policy runs with the \
              controller it was trained with)",
             args.controller
         ));
@@ -236,7 +240,11 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
     if let Some(mu) = args.mpc_friction {
         spec.controller.mpc.friction_coefficient = mu;
     }
-    spec.controller.slip.adapt_friction = args.adapt_friction;
+    if args.no_adapt_friction {
+        spec.controller.slip.adapt_friction = false;
+    } else if args.adapt_friction {
+        spec.controller.slip.adapt_friction = true;
+    }
     spec.seed = args.sensing.seed;
     spec.state_source = args.sensing.source(&robot)?;
     if let Driver::Policy(p) = &driver {
@@ -306,6 +314,9 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
         "body_height_m",
         "ellipse_rx_m",
         "ellipse_ry_m",
+        // The MPC's friction coefficient (slip handling's belief about the floor; NaN without
+        // an MPC).
+        "mu_estimate",
     ]
     .iter()
     .map(|s| s.to_string())
@@ -335,7 +346,11 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
     let mut params_in_force = eemp_core::planner::params_stats::ParamsStats::default();
     let mut frames = Vec::new();
     let video_every = (1.0 / (crate::video::FPS * robot.simulation.timestep_s)).round() as usize;
+    let mut mu_estimate = f64::NAN;
     let observer = |r: &eemp_sim::closed_loop::StepRecord| {
+        if let Some(ev) = &r.output.mpc_event {
+            mu_estimate = ev.friction_coefficient;
+        }
         let s = &r.state.body;
         let v = s.v_heading();
         let cmd = spec.profile.command_at(r.state.time_s);
@@ -379,6 +394,7 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
                 Some(p) => row.extend(p.to_array()),
                 None => row.extend([f64::NAN; 5]),
             }
+            row.push(mu_estimate);
             for leg in Leg::ALL {
                 let f = r.feet_world[leg];
                 let z_ref = r
@@ -501,7 +517,7 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
         "mpc_solves": st.mpc_solves,
         "mpc_failures": st.mpc_failures,
         "mpc_friction_min": st.mpc_friction_min,
-        "adapt_friction": args.adapt_friction,
+        "adapt_friction": args.controller == "eemp" && spec.controller.slip.adapt_friction,
         "mpc_solve_us_median": st.mpc_solve_median_us(),
         "time_share": {
             "physics": st.stages.physics_s / total,
@@ -515,6 +531,38 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
         "estimation_vel_rmse_mps": run.estimation.vel_rmse_mps(),
         "estimation_pos_rmse_m": run.estimation.pos_rmse_m(),
     });
+    let mut summary = summary;
+    // Energy beside eq. 8's CoT: each joint's positive and negative work, and the CoT of the
+    // absolute joint power (Fu et al. 2021's measure); the gait walked (any controller).
+    for (key, value) in [
+        (
+            "joint_positive_work_j",
+            serde_json::json!(m.joint_positive_work_j),
+        ),
+        (
+            "joint_negative_work_j",
+            serde_json::json!(m.joint_negative_work_j),
+        ),
+        (
+            "negative_work_share",
+            serde_json::json!(m.negative_work_share),
+        ),
+        ("cot_abs_power", serde_json::json!(m.cot_abs_power)),
+        ("gait_measure", serde_json::json!(run.gait)),
+        (
+            // What slip handling believed the floor's friction to be (the MPC's coefficient,
+            // never above its nominal) and the floor it walked on.
+            "friction_estimate",
+            serde_json::json!({
+                "final": st.mpc_friction_last,
+                "min": st.mpc_friction_min,
+                "mean": (st.mpc_solves > 0).then(|| st.mpc_friction_sum / st.mpc_solves as f64),
+                "floor_friction": spec.floor_friction.unwrap_or(robot.simulation.floor_friction),
+            }),
+        ),
+    ] {
+        summary[key] = value;
+    }
     write_json(&args.out.join("summary.json"), &summary).map_err(|e| e.to_string())?;
     let panels = vec![
         Panel {

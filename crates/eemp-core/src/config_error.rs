@@ -21,6 +21,24 @@ pub enum ConfigError {
 }
 
 /// Checks `min <= value <= max` (and finiteness) for a named value.
+/// A floor's (or a patch's) friction coefficient: finite and in (0, 2].
+pub fn check_friction(name: &str, value: f64) -> Result<(), ConfigError> {
+    if !value.is_finite() {
+        return Err(ConfigError::NotFinite {
+            name: name.to_string(),
+            value,
+        });
+    }
+    if value <= 0.0 || value > 2.0 {
+        return Err(ConfigError::OutOfRange {
+            name: name.to_string(),
+            value,
+            range: "(0, 2]".into(),
+        });
+    }
+    Ok(())
+}
+
 pub fn check_range(name: &str, value: f64, min: f64, max: f64) -> Result<(), ConfigError> {
     if !value.is_finite() {
         return Err(ConfigError::NotFinite {

@@ -678,6 +678,18 @@ mod tests {
         slipping: bool,
         steps_after: usize,
     ) -> Vector3<f64> {
+        after_a_jump_on(config, v0, v1, slipping, steps_after, LegMap::splat(1.0))
+    }
+
+    /// [`after_a_jump`] with the plan's trust per leg (a trot's stance pair: two legs at 1).
+    fn after_a_jump_on(
+        config: KfConfig,
+        v0: Vector3<f64>,
+        v1: Vector3<f64>,
+        slipping: bool,
+        steps_after: usize,
+        contact_trust: LegMap<f64>,
+    ) -> Vector3<f64> {
         let robot = RobotConfig::a1();
         let kin = LegKinematics::new(&robot);
         let feet = LegMap::from_fn(|leg| {
@@ -709,7 +721,7 @@ mod tests {
                     accel_body: Vector3::new(0.0, 0.0, 9.81),
                 },
                 joints,
-                contact_trust: LegMap::splat(1.0),
+                contact_trust,
             });
         }
         assert!(kf.is_finite());
@@ -773,5 +785,28 @@ mod tests {
         let ungated = after_a_jump(no_gate, v0, v1, false, 100);
         assert_eq!(taken, ungated);
         assert!((taken - v1).norm() < 0.05, "taken {taken:?}");
+    }
+
+    #[test]
+    fn of_a_trots_two_stance_feet_the_sliding_one_does_not_drag_the_estimate() {
+        // The hardest case for the gate: only the diagonal pair FR + RL in stance, FR's foot
+        // sliding 0.4 m/s forward and sideways for 0.2 s (ice under one foot), RL planted. The
+        // two legs disagree, so neither seconds the other; the planted one agrees with the
+        // estimate and keeps its trust, the sliding one is faded out.
+        let v0 = Vector3::new(0.3, 0.0, 0.0);
+        let v_slip = Vector3::new(0.6, 0.3, 0.0);
+        let pair = LegMap::from_fn(|l| match l {
+            Leg::FrontRight | Leg::RearLeft => 1.0,
+            _ => 0.0,
+        });
+        let on = KfConfig::default();
+        let gate_off = KfConfig {
+            leg_outlier_mps: 0.0,
+            ..KfConfig::default()
+        };
+        let gated = after_a_jump_on(on, v0, v_slip, true, 100, pair);
+        let dragged = after_a_jump_on(gate_off, v0, v_slip, true, 100, pair);
+        assert!((gated - v0).norm() < 0.02, "gated {gated:?}");
+        assert!((dragged - v0).norm() > 0.1, "dragged {dragged:?}");
     }
 }

@@ -56,6 +56,16 @@ impl Leg {
         }
     }
 
+    /// The leg on the other side (the left–right mirror's partner).
+    pub const fn mirror(self) -> Leg {
+        match self {
+            Leg::FrontRight => Leg::FrontLeft,
+            Leg::FrontLeft => Leg::FrontRight,
+            Leg::RearRight => Leg::RearLeft,
+            Leg::RearLeft => Leg::RearRight,
+        }
+    }
+
     /// Short name used in files and MuJoCo names: "FR", "FL", "RR", "RL".
     pub const fn short_name(self) -> &'static str {
         match self {

@@ -10,7 +10,8 @@
 //! - [`estimator`]: attitude from the IMU and a linear Kalman filter for trunk position and
 //!   velocity from IMU + leg kinematics (what the robot knows of itself).
 //! - [`hardware`]: the A1's legacy low-level UDP protocol (datagram codec and CRC).
-//! - [`metrics`]: cost of transport (eq. 8) and force manipulability (eq. 9).
+//! - [`metrics`]: cost of transport (eq. 8) and force manipulability (eq. 9); [`gait_measure`]:
+//!   duty factors, pair synchrony and left/right load of any walk.
 
 // Horizon and block indices (k, l, j) are the mathematics here; iterator chains would hide them.
 #![allow(clippy::needless_range_loop)]
@@ -23,6 +24,7 @@ pub mod controller;
 pub mod convex_mpc;
 pub mod eemp_controller;
 pub mod estimator;
+pub mod gait_measure;
 pub mod hardware;
 pub mod joint_pd;
 pub mod kinematics;

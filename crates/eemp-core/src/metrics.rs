@@ -59,6 +59,8 @@ pub struct MetricsAccumulator {
     manip_samples: usize,
     all_stance_time_s: f64,
     time_s: f64,
+    joint_positive_work_j: f64,
+    joint_negative_work_j: f64,
 }
 
 /// Summary metrics of a run (over the measured window).
@@ -75,6 +77,16 @@ pub struct WalkMetrics {
     pub vel_rmse_mps: Option<f64>,
     pub all_stance_fraction: f64,
     pub duration_s: f64,
+    /// Work of the joints where each joint's power is positive, Σⱼ max(q̇ⱼτⱼ, 0)·dt, J (eq. 8
+    /// clips the sum over joints instead, so it credits one joint's absorbed power to another).
+    pub joint_positive_work_j: f64,
+    /// Work the joints absorb, Σⱼ max(−q̇ⱼτⱼ, 0)·dt, J (negative work, braking).
+    pub joint_negative_work_j: f64,
+    /// Share of the joints' absolute work that is negative: negative / (positive + negative).
+    pub negative_work_share: Option<f64>,
+    /// CoT of the absolute joint power, Σⱼ |q̇ⱼτⱼ|·dt / (m g ΔD) (Fu et al. 2021's energy
+    /// measure), for comparison with papers that use it.
+    pub cot_abs_power: Option<f64>,
 }
 
 impl MetricsAccumulator {
@@ -101,6 +113,15 @@ impl MetricsAccumulator {
         }
         self.end_xy = xy;
         self.energy_j += positive_power_w(qd, tau) * dt;
+        for leg in Leg::ALL {
+            for j in 0..3 {
+                let p = qd[leg][j] * tau[leg][j];
+                match p >= 0.0 {
+                    true => self.joint_positive_work_j += p * dt,
+                    false => self.joint_negative_work_j -= p * dt,
+                }
+            }
+        }
         self.sq_vel_err +=
             (v_heading.x - v_command_xy[0]).powi(2) + (v_heading.y - v_command_xy[1]).powi(2);
         self.vel_samples += 1;
@@ -140,6 +161,17 @@ impl MetricsAccumulator {
                 0.0
             },
             duration_s: self.time_s,
+            joint_positive_work_j: self.joint_positive_work_j,
+            joint_negative_work_j: self.joint_negative_work_j,
+            negative_work_share: {
+                let total = self.joint_positive_work_j + self.joint_negative_work_j;
+                (total > 0.0).then(|| self.joint_negative_work_j / total)
+            },
+            cot_abs_power: cost_of_transport_dimensionless(
+                self.joint_positive_work_j + self.joint_negative_work_j,
+                mass_kg,
+                distance,
+            ),
         }
     }
 }
@@ -211,5 +243,39 @@ mod tests {
         assert!((m.vel_rmse_mps.unwrap() - 0.1).abs() < 1e-12);
         assert!((m.all_stance_fraction - 0.25).abs() < 1e-12);
         assert_eq!(m.manipulability, Some(1.0));
+    }
+
+    #[test]
+    fn negative_work_and_absolute_power_by_hand() {
+        // Two steps of 0.5 s with FR's hip at +20 W and FL's knee at −10 W: eq. 8 takes
+        // max(20 − 10, 0) = 10 W (10 J), the joints do 20 J and absorb 10 J; the |power| CoT is
+        // 30 J / (10 kg · g · 1 m).
+        let mut acc = MetricsAccumulator::default();
+        let mut qd = LegMap::splat(Vector3::zeros());
+        let mut tau = LegMap::splat(Vector3::zeros());
+        qd[Leg::FrontRight].x = 2.0;
+        tau[Leg::FrontRight].x = 10.0;
+        qd[Leg::FrontLeft].z = -1.0;
+        tau[Leg::FrontLeft].z = 10.0;
+        let jac = LegMap::splat(Matrix3::identity());
+        let none = LegMap::splat(false);
+        for x in [0.0, 1.0] {
+            acc.observe(
+                0.5,
+                &Vector3::new(x, 0.0, 0.3),
+                &Vector3::zeros(),
+                [0.0, 0.0],
+                &qd,
+                &tau,
+                &none,
+                &jac,
+            );
+        }
+        let m = acc.finish(10.0);
+        assert!((m.energy_j - 10.0).abs() < 1e-12);
+        assert!((m.joint_positive_work_j - 20.0).abs() < 1e-12);
+        assert!((m.joint_negative_work_j - 10.0).abs() < 1e-12);
+        assert!((m.negative_work_share.unwrap() - 1.0 / 3.0).abs() < 1e-12);
+        assert!((m.cot_abs_power.unwrap() - 30.0 / (10.0 * GRAVITY)).abs() < 1e-12);
     }
 }

@@ -82,6 +82,9 @@ pub struct PpoConfig {
     pub init_std: f64,
     /// Lower bound of the standard deviation, enforced after every optimiser step.
     pub min_std: f64,
+    /// Weight of the left–right mirror loss (`crate::mirror`; rsl_rl's mirror loss, Mittal et
+    /// al. 2024); 0: off. Only for tasks with a mirror (model-free).
+    pub symmetry_coef: f64,
 }
 
 impl Default for PpoConfig {
@@ -104,6 +107,7 @@ impl Default for PpoConfig {
             max_grad_norm: 1.0,
             init_std: 1.0,
             min_std: 0.05,
+            symmetry_coef: 0.0,
         }
     }
 }
@@ -123,6 +127,7 @@ impl PpoConfig {
         check_range("ppo.value_coef", self.value_coef, 0.0, 100.0)?;
         check_range("ppo.max_grad_norm", self.max_grad_norm, 1e-6, 1e6)?;
         check_range("ppo.init_std", self.init_std, 1e-3, 10.0)?;
+        check_range("ppo.symmetry_coef", self.symmetry_coef, 0.0, 100.0)?;
         check_range("ppo.min_std", self.min_std, 1e-4, self.init_std)
     }
 }

@@ -5,6 +5,7 @@
 //! its MuJoCo data; nothing is shared between them while they step, so the rollout is the same
 //! whatever the number of threads or the order the pool runs them in.
 
+use crate::mirror::MirrorMap;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
@@ -53,6 +54,11 @@ pub trait Env: Send {
     /// Everything needed to continue bit for bit (checkpoints).
     fn save_state(&self) -> serde_json::Value;
     fn load_state(&mut self, state: &serde_json::Value) -> Result<(), String>;
+    /// The left–right mirror of the observation and of the action (`crate::mirror`), for the
+    /// mirror loss; tasks without one say why not.
+    fn mirror_maps(&self) -> Result<(MirrorMap, MirrorMap), String> {
+        Err("this task has no left–right mirror".into())
+    }
 }
 
 /// Per-environment bookkeeping.
@@ -159,6 +165,11 @@ impl<E: Env> VecEnv<E> {
 
     pub fn reward_terms(&self) -> &'static [&'static str] {
         self.slots[0].env.reward_terms()
+    }
+
+    /// The first environment's [`Env::mirror_maps`] (every environment has the same layout).
+    pub fn mirror_maps(&self) -> Result<(MirrorMap, MirrorMap), String> {
+        self.slots[0].env.mirror_maps()
     }
 
     pub fn envs(&self) -> impl Iterator<Item = &E> {

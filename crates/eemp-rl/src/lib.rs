@@ -18,6 +18,7 @@ pub mod config;
 pub mod controller;
 pub mod env;
 pub mod imitation;
+pub mod mirror;
 pub mod nn;
 pub mod normalizer;
 pub mod policy;

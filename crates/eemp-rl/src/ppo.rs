@@ -4,6 +4,7 @@
 
 use crate::adam::Adam;
 use crate::config::{LrSchedule, PpoConfig};
+use crate::mirror::MirrorMap;
 use crate::nn::ActorCritic;
 use candle_core::{Device, Result, Tensor, D};
 use rand::seq::SliceRandom;
@@ -30,6 +31,9 @@ pub struct Rollout {
     pub periods: Vec<f32>,
     /// log σ of the policy that collected the batch.
     pub log_std: Vec<f32>,
+    /// With the mirror loss: the mirrored observation of each step, normalised as the policy
+    /// saw `obs` (empty: no mirror loss).
+    pub obs_mirrored: Vec<f32>,
 }
 
 impl Rollout {
@@ -93,6 +97,8 @@ pub struct UpdateStats {
     pub clip_fraction: f64,
     pub grad_norm: f64,
     pub learning_rate: f64,
+    /// Mean mirror loss ‖π(M_o o) − M_a π(o)‖² per action value (0 without it).
+    pub symmetry_loss: f64,
 }
 
 fn gather(src: &[f32], width: usize, idx: &[usize]) -> Vec<f32> {
@@ -109,21 +115,48 @@ pub struct Loss {
     pub policy: Tensor,
     pub value: Tensor,
     pub entropy: Tensor,
+    /// The mirror loss (0 without it).
+    pub symmetry: Tensor,
     pub mean: Tensor,
     pub ratio: Tensor,
 }
 
+/// The action mirror as tensors: `mirror(x)[:, i] = sign[i] · x[:, source[i]]`.
+pub struct ActionMirror {
+    source: Tensor,
+    sign: Tensor,
+}
+
+impl ActionMirror {
+    pub fn new(map: &MirrorMap) -> Result<Self> {
+        let n = map.len();
+        let source: Vec<u32> = map.source().iter().map(|&j| j as u32).collect();
+        Ok(ActionMirror {
+            source: Tensor::from_vec(source, n, &Device::Cpu)?,
+            sign: Tensor::from_vec(map.sign().to_vec(), n, &Device::Cpu)?,
+        })
+    }
+
+    pub fn apply(&self, x: &Tensor) -> Result<Tensor> {
+        x.index_select(&self.source, 1)?.broadcast_mul(&self.sign)
+    }
+}
+
 /// Minibatch tensors.
-pub struct Minibatch {
+pub struct Minibatch<'a> {
     pub obs: Tensor,
     pub actions: Tensor,
     pub old_log_probs: Tensor,
     pub old_values: Tensor,
     pub returns: Tensor,
     pub advantages: Tensor,
+    /// The mirrored observations and the action mirror (the mirror loss), or none.
+    pub mirrored: Option<(Tensor, &'a ActionMirror)>,
 }
 
-/// L = −E[min(r A, clip(r, 1±ε) A)] + c_v E[max((V−R)², (V_old + clip(V−V_old, ±ε) − R)²)] − c_e H.
+/// L = −E[min(r A, clip(r, 1±ε) A)] + c_v E[max((V−R)², (V_old + clip(V−V_old, ±ε) − R)²)] − c_e H
+/// (+ c_s E‖π(M_o o) − M_a π(o)‖² with the mirror loss, the target side held fixed as rsl_rl's
+/// mirror loss does).
 pub fn ppo_loss(ac: &ActorCritic, mb: &Minibatch, cfg: &PpoConfig) -> Result<Loss> {
     let eps = cfg.clip;
     let mean = ac.mean(&mb.obs)?;
@@ -142,12 +175,21 @@ pub fn ppo_loss(ac: &ActorCritic, mb: &Minibatch, cfg: &PpoConfig) -> Result<Los
         (&v - &mb.returns)?.sqr()?.mean_all()?
     };
     let entropy = ac.entropy()?;
+    let symmetry = match &mb.mirrored {
+        Some((obs_m, am)) => {
+            let target = am.apply(&mean.detach())?;
+            (ac.mean(obs_m)? - target)?.sqr()?.mean_all()?
+        }
+        None => Tensor::new(0f32, &Device::Cpu)?,
+    };
     let total = ((&policy + (&value * cfg.value_coef)?)? - (&entropy * cfg.entropy_coef)?)?;
+    let total = (total + (&symmetry * cfg.symmetry_coef)?)?;
     Ok(Loss {
         total,
         policy,
         value,
         entropy,
+        symmetry,
         mean,
         ratio,
     })
@@ -184,6 +226,7 @@ fn grad_norm(grads: &[Option<Tensor>]) -> Result<f64> {
 
 /// Runs `cfg.epochs` passes of `cfg.minibatches` minibatches over the rollout.
 /// `progress` (0..1 of the run) drives the linear schedule.
+#[allow(clippy::too_many_arguments)]
 pub fn update(
     ac: &ActorCritic,
     opt: &mut Adam,
@@ -191,6 +234,7 @@ pub fn update(
     rollout: &Rollout,
     last_values: &[f32],
     progress: f64,
+    action_mirror: Option<&ActionMirror>,
     rng: &mut ChaCha8Rng,
 ) -> Result<UpdateStats> {
     let dev = Device::Cpu;
@@ -233,6 +277,13 @@ pub fn update(
                 old_values: Tensor::from_vec(gather(&rollout.values, 1, idx), m, &dev)?,
                 returns: Tensor::from_vec(gather(&ret, 1, idx), m, &dev)?,
                 advantages: Tensor::from_vec(gather(&adv, 1, idx), m, &dev)?,
+                mirrored: match action_mirror {
+                    Some(am) if !rollout.obs_mirrored.is_empty() => Some((
+                        Tensor::from_vec(gather(&rollout.obs_mirrored, d, idx), (m, d), &dev)?,
+                        am,
+                    )),
+                    _ => None,
+                },
             };
             let old_mean = Tensor::from_vec(gather(&rollout.means, a, idx), (m, a), &dev)?;
             let loss = ppo_loss(ac, &mb, cfg)?;
@@ -281,6 +332,7 @@ pub fn update(
             stats.policy_loss += loss.policy.to_scalar::<f32>()? as f64;
             stats.value_loss += loss.value.to_scalar::<f32>()? as f64;
             stats.entropy += loss.entropy.to_scalar::<f32>()? as f64;
+            stats.symmetry_loss += loss.symmetry.to_scalar::<f32>()? as f64;
             stats.kl += kl;
             stats.clip_fraction += clipped;
             stats.grad_norm += norm;
@@ -291,6 +343,7 @@ pub fn update(
     stats.policy_loss /= c;
     stats.value_loss /= c;
     stats.entropy /= c;
+    stats.symmetry_loss /= c;
     stats.kl /= c;
     stats.clip_fraction /= c;
     stats.grad_norm /= c;

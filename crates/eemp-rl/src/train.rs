@@ -10,9 +10,10 @@ use crate::adam::Adam;
 use crate::config::{TaskKind, TrainConfig, TrainEstimator};
 use crate::env::{Env, VecEnv};
 use crate::imitation::motion::ReferenceMotion;
+use crate::mirror::MirrorMap;
 use crate::nn::gaussian_log_prob;
 use crate::policy::{normalizer_from_json, normalizer_to_json, Policy};
-use crate::ppo::{update, Rollout, UpdateStats};
+use crate::ppo::{update, ActionMirror, Rollout, UpdateStats};
 use crate::tasks::cartpole::{cartpole_model, CartPole};
 use crate::tasks::eemp_rl::EempRlEnv;
 use crate::tasks::imitation::ImitationEnv;
@@ -192,10 +193,27 @@ pub fn make_envs_with(
     let source = |i: usize| training_state_source(config, robot, i as u64);
     Ok(match config.task {
         TaskKind::ModelFree => {
-            let model = training_model(robot, &config.model_free)?;
+            // Friction randomisation: environment i on floor i mod n of the listed frictions.
+            let frictions = &config.model_free.floor_frictions;
+            let models = match frictions.is_empty() {
+                true => vec![training_model(robot, &config.model_free)?],
+                false => frictions
+                    .iter()
+                    .map(|&mu| {
+                        let mut r = robot.clone();
+                        r.simulation.floor_friction = mu;
+                        training_model(&r, &config.model_free)
+                    })
+                    .collect::<Result<Vec<_>, _>>()?,
+            };
+            let next = std::cell::Cell::new(0usize);
             let envs = envs_on(
                 config.num_envs,
-                || ModelFreeEnv::new(robot, model.clone(), config.model_free.clone()),
+                || {
+                    let i = next.replace(next.get() + 1);
+                    let model = models[i % models.len()].clone();
+                    ModelFreeEnv::new(robot, model, config.model_free.clone())
+                },
                 &source,
             )?;
             AnyVecEnv::ModelFree(VecEnv::new(envs, config.seed, threads)?)
@@ -280,9 +298,11 @@ struct Trainer<E: Env> {
     recent_returns: VecDeque<f64>,
     recent_lengths: VecDeque<f64>,
     threads: usize,
+    /// With the mirror loss: the observation's mirror and the action's.
+    mirror: Option<(MirrorMap, ActionMirror)>,
 }
 
-const CSV_HEADER: [&str; 19] = [
+const CSV_HEADER: [&str; 20] = [
     "iteration",
     "env_steps",
     "wall_s",
@@ -302,6 +322,7 @@ const CSV_HEADER: [&str; 19] = [
     "mean_std",
     "env_steps_per_s",
     "total_env_steps",
+    "symmetry_loss",
 ];
 
 /// Whether a run with config `new` may continue a checkpoint of a run with config `old`: the
@@ -331,6 +352,21 @@ impl<E: Env> Trainer<E> {
     ) -> Result<Self, String> {
         let mut policy = Policy::new(config)?;
         policy.motion = motion;
+        let mirror = if config.ppo.symmetry_coef > 0.0 {
+            let named =
+                |e: String| format!("ppo.symmetry_coef = {}: {e}", config.ppo.symmetry_coef);
+            let (obs_map, act_map) = envs.mirror_maps().map_err(named)?;
+            obs_map
+                .check_width(envs.obs_dim(), "the observation")
+                .map_err(named)?;
+            act_map
+                .check_width(envs.act_dim(), "the action")
+                .map_err(named)?;
+            let am = ActionMirror::new(&act_map).map_err(|e| e.to_string())?;
+            Some((obs_map, am))
+        } else {
+            None
+        };
         let adam =
             Adam::new(policy.net.vars(), config.ppo.learning_rate).map_err(|e| e.to_string())?;
         let mut t = Trainer {
@@ -345,6 +381,7 @@ impl<E: Env> Trainer<E> {
             recent_returns: VecDeque::new(),
             recent_lengths: VecDeque::new(),
             threads: opts.threads,
+            mirror,
         };
         if opts.resume && checkpoint_dir(&opts.out).join("state.json").exists() {
             t.load_checkpoint(&checkpoint_dir(&opts.out))?;
@@ -566,6 +603,14 @@ impl<E: Env> Trainer<E> {
         self.policy.normalizer.apply(&self.envs.obs, &mut obs_n);
         let x = Tensor::from_vec(obs_n, (n, d), &Device::Cpu).map_err(|e| e.to_string())?;
         let last_values: Vec<f32> = values_of(&self.policy, &x)?;
+        if let Some((obs_map, _)) = &self.mirror {
+            // The normaliser is the one the rollout ran with (it is updated after the update).
+            let mirrored = obs_map.apply_rows(&raw_all);
+            rollout.obs_mirrored = vec![0f32; mirrored.len()];
+            self.policy
+                .normalizer
+                .apply(&mirrored, &mut rollout.obs_mirrored);
+        }
         let progress = self.iteration as f64 / self.total_iterations().max(1) as f64;
         let stats = update(
             &self.policy.net,
@@ -574,6 +619,7 @@ impl<E: Env> Trainer<E> {
             &rollout,
             &last_values,
             progress,
+            self.mirror.as_ref().map(|(_, am)| am),
             &mut self.rng,
         )
         .map_err(|e| e.to_string())?;
@@ -730,6 +776,7 @@ fn write_row(f: &mut std::fs::File, l: &IterationLog, n_terms: usize) -> Result<
         format!("{}", l.mean_std),
         format!("{:.1}", l.env_steps_per_s),
         l.total_env_steps.to_string(),
+        format!("{}", u.symmetry_loss),
     ];
     cols.extend(l.terms.iter().take(n_terms).map(|t| format!("{t}")));
     writeln!(f, "{}", cols.join(",")).map_err(|e| format!("cannot write train.csv: {e}"))?;

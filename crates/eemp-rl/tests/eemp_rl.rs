@@ -175,6 +175,9 @@ fn table_walk_spec(cfg: &EempRlConfig, speed: f64, duration_s: f64, seed: u64) -
     );
     spec.params_table = Some(table);
     spec.seed = seed;
+    // EEMP-RL's controller, slip handling as its config says (off: the free gait's default
+    // is on).
+    spec.controller.slip.adapt_friction = cfg.adapt_friction;
     spec
 }
 

@@ -320,6 +320,7 @@ fn the_ppo_gradient_matches_finite_differences_on_a_tiny_network() {
         old_values: Tensor::from_vec(r(&mut rng, m, 3.0), m, &dev).unwrap(),
         returns: Tensor::from_vec(r(&mut rng, m, 2.0), m, &dev).unwrap(),
         advantages: Tensor::from_vec(r(&mut rng, m, 1.0), m, &dev).unwrap(),
+        mirrored: None,
     };
     let cfg = PpoConfig {
         entropy_coef: 0.05,
@@ -453,6 +454,7 @@ fn the_ppo_loss_equals_a_hand_computed_value_with_both_clips_active() {
         old_values: Tensor::new(&[v - 0.5], &dev).unwrap(),
         returns: Tensor::new(&[v + 1.0], &dev).unwrap(),
         advantages: Tensor::new(&[2.0f32], &dev).unwrap(),
+        mirrored: None,
     };
     let cfg = PpoConfig {
         value_coef: 0.5,

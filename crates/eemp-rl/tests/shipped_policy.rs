@@ -38,10 +38,10 @@ fn walk_spec(vx_mps: f64, duration_s: f64) -> WalkSpec {
 }
 
 #[test]
-fn the_shipped_model_free_policy_walks_5_s_at_0_5_m_per_s() {
+fn the_first_model_free_policy_walks_5_s_at_0_5_m_per_s() {
     let robot = RobotConfig::a1();
     let policy = Policy::load(
-        &repo_file("policies/a1_model_free.safetensors"),
+        &repo_file("policies/a1_model_free_v1.safetensors"),
         Some(TaskKind::ModelFree),
     )
     .unwrap();

@@ -82,6 +82,8 @@ pub struct StepRecord<'a> {
     pub contacts: LegMap<bool>,
     /// Feet carrying more than [`LOADED_FOOT_N`] (from the previous step's contact solve).
     pub loaded: LegMap<bool>,
+    /// Each foot's normal force from the previous step's contact solve, N.
+    pub foot_normal_n: LegMap<f64>,
 }
 
 /// A foot counts as carrying the robot above this normal force, N. The floor's contacts are
@@ -190,6 +192,10 @@ pub struct LoopStats {
     /// The lowest friction coefficient an MPC solve used (lowered after slips); None without
     /// MPC solves.
     pub mpc_friction_min: Option<f64>,
+    /// The friction coefficient of the last MPC solve and the sum over the solves (the
+    /// controller's belief about the floor, capped at the MPC's nominal; `eemp_core::slip`).
+    pub mpc_friction_last: Option<f64>,
+    pub mpc_friction_sum: f64,
     pub mpc_solve_times_s: Vec<f64>,
     pub fell: bool,
     pub fell_at_s: Option<f64>,
@@ -234,6 +240,7 @@ pub struct ClosedLoop {
     t_start: f64,
     wall_start: Instant,
     loaded: LegMap<bool>,
+    foot_normal_n: LegMap<f64>,
     estimator: Option<(LinearKf, Sensors)>,
     /// The state the controller saw at the last step, when it is an estimate.
     last_estimate: Option<RobotState>,
@@ -268,6 +275,7 @@ impl ClosedLoop {
             wall_start: Instant::now(),
             // Episodes start standing.
             loaded: LegMap::splat(true),
+            foot_normal_n: LegMap::splat(0.0),
         }
     }
 
@@ -328,6 +336,7 @@ impl ClosedLoop {
         self.t_start = self.sim.time_s();
         self.wall_start = Instant::now();
         self.loaded = LegMap::splat(true);
+        self.foot_normal_n = LegMap::splat(0.0);
         self.trust = ContactTrust::new(self.t_start);
         self.last_torques = LegMap::splat(Vector3::zeros());
         self.estimation = EstimationStats::default();
@@ -458,11 +467,13 @@ impl ClosedLoop {
             feet_world: &feet,
             contacts: self.sim.foot_contacts(),
             loaded: self.loaded,
+            foot_normal_n: self.foot_normal_n,
         });
         let t4 = Instant::now();
         let sim = &mut self.sim;
         sim.advance(&output.torques);
-        self.loaded = sim.foot_normal_forces_n().map(|_, f| *f > LOADED_FOOT_N);
+        self.foot_normal_n = sim.foot_normal_forces_n();
+        self.loaded = self.foot_normal_n.map(|_, f| *f > LOADED_FOOT_N);
         // Pushes take effect between steps. A pulse acts for n = round(duration / dt) ≥ 1
         // whole physics steps with the force that gives exactly mass × Δv over them.
         let had_pulses = !self.pulses.is_empty();
@@ -502,6 +513,8 @@ impl ClosedLoop {
                     .mpc_friction_min
                     .map_or(ev.friction_coefficient, |m| m.min(ev.friction_coefficient)),
             );
+            stats.mpc_friction_last = Some(ev.friction_coefficient);
+            stats.mpc_friction_sum += ev.friction_coefficient;
             if !ev.status.is_solved() {
                 stats.mpc_failures += 1;
             }

@@ -67,7 +67,7 @@ impl Scenario {
     pub fn validate(&self) -> Result<(), ConfigError> {
         self.terrain.validate()?;
         if let Some(mu) = self.floor_friction {
-            check_range("floor_friction", mu, 0.05, 5.0)?;
+            eemp_core::config_error::check_friction("floor_friction", mu)?;
         }
         for (i, p) in self.push.iter().enumerate() {
             check_range(&format!("push[{i}].at_s"), p.at_s, 0.0, 3600.0)?;

@@ -137,12 +137,27 @@ impl Terrain {
                 0.1,
                 40.0,
             )?;
-            check_range(
+            eemp_core::config_error::check_friction(
                 &format!("terrain.friction_patch[{i}].friction"),
                 p.friction,
-                0.05,
-                5.0,
             )?;
+            // Segments of other friction along the path: in order, none overlapping another
+            // (where two overlapped, which friction holds would be MuJoCo's choice).
+            if i > 0 {
+                let prev = &self.friction_patch[i - 1];
+                if p.x0_m < prev.x1_m {
+                    return Err(ConfigError::Invalid {
+                        name: format!("terrain.friction_patch[{i}].x0_m"),
+                        message: format!(
+                            "{} starts before patch {} ends at x1_m = {}: patches must be in \
+                             order along x and not overlap",
+                            p.x0_m,
+                            i - 1,
+                            prev.x1_m
+                        ),
+                    });
+                }
+            }
         }
         if self.rough.is_some() && (self.ramp.is_some() || self.step.is_some()) {
             return Err(ConfigError::Invalid {

@@ -13,6 +13,7 @@ use eemp_core::config_error::{check_range, ConfigError};
 use eemp_core::control::Controller;
 use eemp_core::controller::{ControllerConfig, LocomotionController};
 use eemp_core::eemp_controller::{EempController, ParamsSource};
+use eemp_core::gait_measure::{GaitMeasure, GaitMeter};
 use eemp_core::kinematics::LegKinematics;
 use eemp_core::leg::{Leg, LegMap};
 use eemp_core::metrics::{MetricsAccumulator, WalkMetrics};
@@ -243,7 +244,10 @@ impl WalkSpec {
         duration_s: f64,
     ) -> Self {
         WalkSpec {
-            controller: ControllerConfig::default(),
+            controller: ControllerConfig {
+                slip: eemp_core::slip::SlipConfig::default_for(planner.gait),
+                ..ControllerConfig::default()
+            },
             planner,
             params,
             params_table: None,
@@ -296,7 +300,7 @@ impl WalkSpec {
             self.duration_s,
         )?;
         if let Some(mu) = self.floor_friction {
-            check_range("floor_friction", mu, 0.05, 5.0)?;
+            eemp_core::config_error::check_friction("floor_friction", mu)?;
         }
         self.terrain.validate()?;
         check_range("payload_kg", self.payload_kg, 0.0, 10.0)?;
@@ -317,6 +321,8 @@ pub struct WalkRun {
     pub estimation: EstimationStats,
     pub metrics: WalkMetrics,
     pub steps: LegMap<usize>,
+    /// The gait walked over the metrics window (`None` if the window is empty).
+    pub gait: Option<GaitMeasure>,
 }
 
 /// Joint angles that put every foot under its hip with the trunk at `height_m` (flat ground).
@@ -495,6 +501,7 @@ pub fn run_walk_commanded(
     reset_to_start(&mut sim, start, spec.seed);
     let kin = LegKinematics::new(&robot);
     let mut metrics = MetricsAccumulator::default();
+    let mut gait = GaitMeter::default();
     let dt = sim.timestep_s();
     let mass = robot.total_mass_kg();
     let mut touchdowns = LegMap::splat(0usize);
@@ -518,6 +525,7 @@ pub fn run_walk_commanded(
         was_down = Some(record.loaded);
         if t >= spec.metrics_start_s {
             observe_metrics(&mut metrics, &kin, dt, record, &stance);
+            gait.observe(dt, &record.loaded, &record.foot_normal_n);
         }
         observer(record);
     });
@@ -529,5 +537,6 @@ pub fn run_walk_commanded(
         estimation: lp.estimation().clone(),
         metrics: metrics.finish(mass),
         steps,
+        gait: gait.finish(),
     })
 }

@@ -332,7 +332,10 @@ fn on_a_floor_less_grippy_than_the_mpc_assumes_slips_lower_its_friction_and_the_
 #[test]
 fn the_free_gait_pairs_its_swings_and_walks_a_floor_of_friction_0_3_from_rest() {
     let run = |pairing: FreePairing, seed: u64| {
-        let s = free_table_on_floor(5.0, seed, 0.3, pairing);
+        // Without slip handling (on by default since issue 22, and enough on its own for
+        // this floor): the pairing alone.
+        let mut s = free_table_on_floor(5.0, seed, 0.3, pairing);
+        s.controller.slip.adapt_friction = false;
         run_walk(&RobotConfig::a1(), &s, |_| {}).unwrap()
     };
     for seed in [1, 2, 3] {

@@ -9,6 +9,7 @@
 //! the shaping terms the recipes use, also switchable.
 
 use crate::env::{Env, StepInfo};
+use crate::mirror::{MirrorBuilder, MirrorMap, AXIAL, JOINTS, POLAR};
 use eemp_core::body_state::RobotState;
 use eemp_core::config_error::{check_range, ConfigError};
 use eemp_core::joint_pd::{JointPd, PdGains};
@@ -242,6 +243,9 @@ pub struct ModelFreeConfig {
     pub reset_joint_noise_rad: f64,
     pub reset_vel_noise_mps: f64,
     pub pushes: TrainPushes,
+    /// Friction randomisation: the floor frictions trained on, environment i on entry i mod n
+    /// (empty: the robot file's floor).
+    pub floor_frictions: Vec<f64>,
 }
 
 impl Default for ModelFreeConfig {
@@ -264,6 +268,7 @@ impl Default for ModelFreeConfig {
             reset_joint_noise_rad: 0.1,
             reset_vel_noise_mps: 0.1,
             pushes: TrainPushes::default(),
+            floor_frictions: Vec::new(),
         }
     }
 }
@@ -341,6 +346,12 @@ impl ModelFreeConfig {
             0.0,
             1.0,
         )?;
+        for (i, &mu) in self.floor_frictions.iter().enumerate() {
+            eemp_core::config_error::check_friction(
+                &format!("model_free.floor_frictions[{i}]"),
+                mu,
+            )?;
+        }
         self.pushes.validate()
     }
 
@@ -355,6 +366,53 @@ pub fn base_obs_dim(e: &ExtraObs, history: usize) -> usize {
         + 3
         + 3 * (e.base_lin_vel as usize + e.base_ang_vel as usize + e.gravity as usize)
         + FRAME * history
+}
+
+/// The left–right mirror of [`observe`]'s layout (`crate::mirror`). It holds when the standing
+/// pose's hip angle is 0 (q − q₀ and the actions are about q₀).
+pub fn observation_mirror(extra: &ExtraObs, history: usize) -> MirrorMap {
+    let mut b = MirrorBuilder::new()
+        .per_leg(JOINTS) // q − q₀
+        .per_leg(JOINTS) // q̇
+        .per_leg(JOINTS) // τ
+        .per_leg(POLAR) // feet, body frame
+        .per_leg(JOINTS) // a_{t−1}
+        .scalar(1.0) // vx
+        .scalar(-1.0) // vy
+        .scalar(-1.0); // yaw rate
+    if extra.base_lin_vel {
+        b = b.vector(POLAR);
+    }
+    if extra.base_ang_vel {
+        b = b.vector(AXIAL);
+    }
+    if extra.gravity {
+        b = b.vector(POLAR);
+    }
+    b.repeat(history, |f| f.per_leg(JOINTS).per_leg(JOINTS))
+        .build()
+}
+
+/// The left–right mirror of the actions (joint targets about q₀).
+pub fn action_mirror() -> MirrorMap {
+    MirrorBuilder::new().per_leg(JOINTS).build()
+}
+
+/// Refuses the mirror for a standing pose with a nonzero hip angle (q₀ is not its own mirror).
+pub fn check_mirror_pose(q0: &LegMap<Vector3<f64>>) -> Result<(), String> {
+    for leg in Leg::ALL {
+        let (a, b) = (q0[leg], q0[leg.mirror()]);
+        if (a.x + b.x).abs() > 1e-9 || (a.y - b.y).abs() > 1e-9 || (a.z - b.z).abs() > 1e-9 {
+            return Err(format!(
+                "the standing pose (leg.standing_pose_rad) is not its own mirror: {} {:?} against {} {:?}",
+                leg.short_name(),
+                a.as_slice(),
+                leg.mirror().short_name(),
+                b.as_slice()
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// What a model-free policy remembers between its steps (the same in training and on the robot).
@@ -987,6 +1045,13 @@ impl Env for ModelFreeEnv {
         let snap: ModelFreeSnapshot =
             serde_json::from_value(s.clone()).map_err(|e| format!("model-free env state: {e}"))?;
         self.restore(&snap)
+    }
+    fn mirror_maps(&self) -> Result<(MirrorMap, MirrorMap), String> {
+        check_mirror_pose(&self.q0)?;
+        Ok((
+            observation_mirror(&self.config.extra_obs, self.config.history),
+            action_mirror(),
+        ))
     }
 }
 
