@@ -284,7 +284,7 @@ fn bad_clips_and_motions_exit_2_name_the_file_frame_and_marker_and_write_nothing
             "imitation",
             "--policy",
             Path::new(env!("CARGO_MANIFEST_DIR"))
-                .join("../../policies/a1_model_free_v1.safetensors")
+                .join("../../policies/a1_model_free.safetensors")
                 .to_str()
                 .unwrap(),
         ],
@@ -402,4 +402,82 @@ fn a_walk_traces_the_parameters_in_force_and_summarises_them_per_speed() {
     let mean = speeds[1]["mean"]["body_height_m"].as_f64().unwrap();
     assert!((mean - p.body_height_m).abs() < 1e-12, "{mean}");
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn bad_friction_and_baseline_input_exits_2_names_the_key_and_writes_nothing() {
+    // Issue 22: a friction outside (0, 2], friction segments out of order or overlapping.
+    // Issue 21: an energy weight out of range, a mirror loss on a task without a mirror, a
+    // training floor outside (0, 2].
+    let dir = scratch("friction");
+    let write = |name: &str, text: &str| {
+        let p = dir.join(name);
+        std::fs::write(&p, text).unwrap();
+        p.to_str().unwrap().to_string()
+    };
+    let overlap = write(
+        "overlap.toml",
+        "[[terrain.friction_patch]]\nx0_m = 1.0\nx1_m = 2.0\nfriction = 0.2\n\n\
+         [[terrain.friction_patch]]\nx0_m = 1.5\nx1_m = 3.0\nfriction = 0.4\n",
+    );
+    let unordered = write(
+        "unordered.toml",
+        "[[terrain.friction_patch]]\nx0_m = 3.0\nx1_m = 4.0\nfriction = 0.2\n\n\
+         [[terrain.friction_patch]]\nx0_m = 0.5\nx1_m = 1.0\nfriction = 0.4\n",
+    );
+    let floor = write("floor.toml", "floor_friction = 2.5\n");
+    let energy = write(
+        "energy.toml",
+        "task = \"model-free\"\n[model_free.rewards]\nenergy = -5000.0\n",
+    );
+    let mirror = write(
+        "mirror.toml",
+        "task = \"cart-pole\"\ntotal_env_steps = 2048\n[ppo]\nsymmetry_coef = 0.5\n",
+    );
+    let floors = write(
+        "floors.toml",
+        "task = \"model-free\"\n[model_free]\nfloor_frictions = [0.5, 0.0]\n",
+    );
+    let cases: [(Vec<&str>, &[&str]); 8] = [
+        (
+            vec!["walk", "--friction", "0"],
+            &["floor_friction", "(0, 2]"],
+        ),
+        (
+            vec!["walk", "--friction", "2.5"],
+            &["floor_friction", "2.5"],
+        ),
+        (
+            vec!["walk", "--scenario", &overlap],
+            &["friction_patch[1].x0_m", "1.5"],
+        ),
+        (
+            vec!["walk", "--scenario", &unordered],
+            &["friction_patch[1].x0_m", "0.5"],
+        ),
+        (
+            vec!["walk", "--scenario", &floor],
+            &["floor_friction", "2.5"],
+        ),
+        (
+            vec!["train", "--task", "model-free", "--config", &energy],
+            &["model_free.rewards.energy", "-5000"],
+        ),
+        (
+            vec!["train", "--task", "cart-pole", "--config", &mirror],
+            &["ppo.symmetry_coef", "no left–right mirror"],
+        ),
+        (
+            vec!["train", "--task", "model-free", "--config", &floors],
+            &["model_free.floor_frictions[1]", "(0, 2]"],
+        ),
+    ];
+    for (args, want) in cases {
+        let (code, err, wrote) = eemp(&dir, &args);
+        assert_eq!(code, Some(2), "{args:?}: {err}");
+        for w in want {
+            assert!(err.contains(w), "{args:?}: {err:?} lacks {w:?}");
+        }
+        assert!(!wrote, "{args:?} wrote its output");
+    }
 }

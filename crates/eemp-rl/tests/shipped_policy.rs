@@ -1,4 +1,4 @@
-//! The shipped model-free, imitation and EEMP-RL policies walk on the evaluation model (1 ms steps, the robot file's
+//! The shipped model-free (with its fine-tunes), imitation and EEMP-RL policies walk on the evaluation model (1 ms steps, the robot file's
 //! physics), through the same scenario and metrics code as EEMP.
 
 use eemp_core::planner::{PlannerConfig, PlannerParams, VelocityCommand};
@@ -38,10 +38,10 @@ fn walk_spec(vx_mps: f64, duration_s: f64) -> WalkSpec {
 }
 
 #[test]
-fn the_first_model_free_policy_walks_5_s_at_0_5_m_per_s() {
+fn the_shipped_model_free_policy_walks_5_s_at_0_5_m_per_s() {
     let robot = RobotConfig::a1();
     let policy = Policy::load(
-        &repo_file("policies/a1_model_free_v1.safetensors"),
+        &repo_file("policies/a1_model_free.safetensors"),
         Some(TaskKind::ModelFree),
     )
     .unwrap();
@@ -167,4 +167,40 @@ fn the_shipped_eemp_rl_policy_walks_0_to_1_to_0_m_per_s_in_one_run() {
         top_speed > 0.9,
         "reached {top_speed} m/s of the 1.0 commanded"
     );
+}
+
+#[test]
+fn the_omni_and_energy_aware_fine_tunes_walk_5_s_at_0_5_m_per_s_on_the_filter() {
+    // Issue 21's fine-tunes: trained on the current filter with sensor noise, pushes and
+    // friction randomisation, the mirror loss on, the energy-aware one with its energy term.
+    let robot = RobotConfig::a1();
+    for (file, energy) in [
+        ("policies/a1_model_free_omni.safetensors", false),
+        ("policies/a1_model_free_energy.safetensors", true),
+    ] {
+        let policy = Policy::load(&repo_file(file), Some(TaskKind::ModelFree)).unwrap();
+        assert_eq!(policy.config.estimator, eemp_rl::config::TrainEstimator::Kf);
+        assert!(policy.config.ppo.symmetry_coef > 0.0, "{file}");
+        assert!(
+            !policy.config.model_free.floor_frictions.is_empty(),
+            "{file}"
+        );
+        assert_eq!(
+            policy.config.model_free.rewards.energy < 0.0,
+            energy,
+            "{file}"
+        );
+        let mut c = PolicyController::new(policy, &robot, robot.simulation.timestep_s).unwrap();
+        let start = StartPose::from_joints(&robot, c.default_pose());
+        let mut spec = walk_spec(0.5, 5.0);
+        spec.seed = 1;
+        spec.state_source = eemp_sim::closed_loop::StateSource::kf(
+            &robot,
+            eemp_sim::sensors::SensorNoise::default(),
+            1,
+        );
+        let run = run_walk_with(&robot, &spec, &start, &mut c, |_| {}).unwrap();
+        assert_walked(&run, 0.15, 1.2);
+        assert_eq!(c.invalid_steps, 0);
+    }
 }
