@@ -25,6 +25,15 @@ fn assert_walked(run: &WalkRun, max_rmse_mps: f64, min_distance_m: f64) {
     assert!(d > min_distance_m, "walked {d} m");
 }
 
+/// [`walk_spec`] on the Kalman filter with A1-like sensor noise, seed 1.
+fn kf_walk_spec(robot: &RobotConfig, vx_mps: f64, duration_s: f64) -> WalkSpec {
+    let mut spec = walk_spec(vx_mps, duration_s);
+    spec.seed = 1;
+    spec.state_source =
+        eemp_sim::closed_loop::StateSource::kf(robot, eemp_sim::sensors::SensorNoise::default(), 1);
+    spec
+}
+
 fn walk_spec(vx_mps: f64, duration_s: f64) -> WalkSpec {
     WalkSpec::constant(
         PlannerConfig::default(),
@@ -71,13 +80,7 @@ fn the_shipped_robust_model_free_policy_walks_5_s_at_0_5_m_per_s_on_the_filter()
     let trained_kf = policy.config.kf;
     let mut c = PolicyController::new(policy, &robot, robot.simulation.timestep_s).unwrap();
     let start = StartPose::from_joints(&robot, c.default_pose());
-    let mut spec = walk_spec(0.5, 5.0);
-    spec.seed = 1;
-    spec.state_source = eemp_sim::closed_loop::StateSource::kf(
-        &robot,
-        eemp_sim::sensors::SensorNoise::default(),
-        1,
-    );
+    let mut spec = kf_walk_spec(&robot, 0.5, 5.0);
     // The filter it was trained on: its file's config (written before `[kf]` existed, so read
     // as the earlier filter) says the same as its training config's `[kf]`.
     let trained: eemp_rl::config::TrainConfig =
@@ -192,13 +195,7 @@ fn the_omni_and_energy_aware_fine_tunes_walk_5_s_at_0_5_m_per_s_on_the_filter() 
         );
         let mut c = PolicyController::new(policy, &robot, robot.simulation.timestep_s).unwrap();
         let start = StartPose::from_joints(&robot, c.default_pose());
-        let mut spec = walk_spec(0.5, 5.0);
-        spec.seed = 1;
-        spec.state_source = eemp_sim::closed_loop::StateSource::kf(
-            &robot,
-            eemp_sim::sensors::SensorNoise::default(),
-            1,
-        );
+        let spec = kf_walk_spec(&robot, 0.5, 5.0);
         let run = run_walk_with(&robot, &spec, &start, &mut c, |_| {}).unwrap();
         // They track worse than the baseline (reports/baselines): 0.1 m/s RMSE on the filter.
         assert_walked(&run, 0.15, 0.9);
