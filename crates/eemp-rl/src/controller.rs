@@ -54,7 +54,7 @@ impl PolicyController {
                 (
                     Agent::ModelFree {
                         kin: LegKinematics::new(robot),
-                        memory: PolicyMemory::new(config.history),
+                        memory: PolicyMemory::for_config(&config),
                         config: Box::new(config.clone()),
                     },
                     config.policy_period_s,

@@ -187,6 +187,29 @@ impl Policy {
         Ok(policy)
     }
 
+    /// This policy with `obs_dim` inputs: the first layers of actor and critic gain zero
+    /// columns for the new (last) inputs and the normaliser unit statistics for them, so it
+    /// acts exactly as before whatever the new inputs read (a fine-tune that adds a gait clock).
+    pub fn with_appended_inputs(mut self, obs_dim: usize) -> Result<Self, String> {
+        let old = self.net.obs_dim();
+        if obs_dim < old {
+            return Err(format!(
+                "cannot narrow a policy's inputs from {old} to {obs_dim}"
+            ));
+        }
+        for mlp in [&mut self.net.actor, &mut self.net.critic] {
+            let w = mlp.layers[0].weight.as_tensor();
+            let zeros = Tensor::zeros((w.dims()[0], obs_dim - old), w.dtype(), w.device())
+                .map_err(|e| e.to_string())?;
+            let wide = Tensor::cat(&[w, &zeros], 1).map_err(|e| e.to_string())?;
+            mlp.layers[0].weight =
+                candle_core::Var::from_tensor(&wide).map_err(|e| e.to_string())?;
+        }
+        self.normalizer.mean.resize(obs_dim, 0.0);
+        self.normalizer.var.resize(obs_dim, 1.0);
+        Ok(self)
+    }
+
     /// The deterministic action (the Gaussian's mean) for one raw observation.
     pub fn act(&self, raw_obs: &[f32]) -> Result<Vec<f32>, String> {
         let mut x = vec![0f32; raw_obs.len()];

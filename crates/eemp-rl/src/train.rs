@@ -402,7 +402,10 @@ impl<E: Env> Trainer<E> {
     /// Fine-tuning ([`TrainConfig::init_policy`]): the networks, log-std and normaliser of a
     /// policy file of the same task and shapes.
     fn start_from(&mut self, path: &Path) -> Result<(), String> {
-        let p = Policy::load(path, Some(self.config.task))?;
+        let mut p = Policy::load(path, Some(self.config.task))?;
+        if adds_gait_clock(&p.config, &self.config) {
+            p = p.with_appended_inputs(self.policy.net.obs_dim())?;
+        }
         let (ours, theirs) = (self.policy.net.vars(), p.net.vars());
         let shapes = |v: &[candle_core::Var]| -> Vec<Vec<usize>> {
             v.iter().map(|x| x.dims().to_vec()).collect()
@@ -781,4 +784,19 @@ fn write_row(f: &mut std::fs::File, l: &IterationLog, n_terms: usize) -> Result<
     cols.extend(l.terms.iter().take(n_terms).map(|t| format!("{t}")));
     writeln!(f, "{}", cols.join(",")).map_err(|e| format!("cannot write train.csv: {e}"))?;
     f.flush().map_err(|e| e.to_string())
+}
+
+/// A model-free fine-tune that adds a gait clock (`extra_obs.gait_clock_hz` 0 → > 0) to an
+/// otherwise equal observation: the clock is appended last, so the init policy's inputs are
+/// a prefix of the new ones.
+fn adds_gait_clock(init: &TrainConfig, ours: &TrainConfig) -> bool {
+    let (a, b) = (&init.model_free, &ours.model_free);
+    let mut a_extra = a.extra_obs.clone();
+    a_extra.gait_clock_hz = b.extra_obs.gait_clock_hz;
+    init.task == TaskKind::ModelFree
+        && ours.task == TaskKind::ModelFree
+        && a.extra_obs.gait_clock_hz == 0.0
+        && b.extra_obs.gait_clock_hz > 0.0
+        && a.history == b.history
+        && a_extra == b.extra_obs
 }

@@ -29,6 +29,9 @@ fn mirrored_memory(m: &PolicyMemory) -> PolicyMemory {
         prev_action: a.apply_rows(&m.prev_action),
         history: m.history.iter().map(|h| frame.apply_rows(h)).collect(),
         last_torques: std::array::from_fn(|i| t[i] as f64),
+        // The mirrored robot is half a gait cycle on.
+        clock_phase: (m.clock_phase + 0.5).rem_euclid(1.0),
+        clock_step: m.clock_step,
     }
 }
 
@@ -51,8 +54,11 @@ fn the_mirrored_observation_of_a_state_is_the_observation_of_the_mirrored_simula
     let kin = LegKinematics::new(&robot);
     let q0 = robot.standing_pose();
     let mut rng = ChaCha8Rng::seed_from_u64(3);
-    for history in [0, 2] {
-        let extra = ExtraObs::default();
+    for (history, clock_hz) in [(0, 0.0), (2, 0.0), (1, 2.0)] {
+        let extra = ExtraObs {
+            gait_clock_hz: clock_hz,
+            ..ExtraObs::default()
+        };
         let map = observation_mirror(&extra, history);
         some_state(&mut sim, &robot, &mut rng);
         let s = sim.ground_truth_state();
@@ -60,6 +66,7 @@ fn the_mirrored_observation_of_a_state_is_the_observation_of_the_mirrored_simula
         let s_m = mirrored.ground_truth_state();
         let mut memory = PolicyMemory::new(history);
         memory.start(&s, &q0);
+        memory.clock_phase = 0.17;
         memory.prev_action = (0..12).map(|_| rng.random_range(-1.0..1.0)).collect();
         memory.last_torques = std::array::from_fn(|_| rng.random_range(-20.0..20.0));
         for h in memory.history.iter_mut() {
@@ -94,7 +101,7 @@ fn the_mirrored_observation_of_a_state_is_the_observation_of_the_mirrored_simula
         for (i, (a, b)) in want.iter().zip(&o_m).enumerate() {
             assert!(
                 (a - b).abs() < 1e-5,
-                "history {history}, entry {i}: {a} against {b}"
+                "history {history}, clock {clock_hz} Hz, entry {i}: {a} against {b}"
             );
         }
         // Not vacuous: the state is not its own mirror.
@@ -198,4 +205,83 @@ fn the_mirror_loss_is_the_mean_squared_gap_to_the_mirrored_action() {
     let got = loss.symmetry.to_scalar::<f32>().unwrap();
     assert!(by_hand > 1e-4, "an untrained network is not symmetric");
     assert!((got - by_hand).abs() < 1e-6, "{got} against {by_hand}");
+}
+
+#[test]
+fn the_trot_schedule_alternates_diagonal_pairs_and_its_reward_counts_matching_feet() {
+    use eemp_rl::tasks::model_free::{gait_schedule, scheduled_stance};
+    let first = scheduled_stance(0.1);
+    let second = scheduled_stance(0.6);
+    for leg in Leg::ALL {
+        // Each leg swings in one half and stands in the other; the mirror leg the opposite.
+        assert_ne!(first[leg], second[leg]);
+        assert_ne!(first[leg], first[leg.mirror()]);
+    }
+    assert!(!first[Leg::FrontLeft] && !first[Leg::RearRight]);
+    assert_eq!(gait_schedule(&first, &first), 1.0);
+    assert_eq!(gait_schedule(&first, &second), 0.0);
+    // All four loaded (standing) matches half the schedule at any phase.
+    let all = LegMap::from_fn(|_| true);
+    assert_eq!(gait_schedule(&all, &first), 0.5);
+    assert_eq!(gait_schedule(&all, &scheduled_stance(1.6)), 0.5);
+}
+
+#[test]
+fn the_clock_advances_one_period_per_step_and_restarts_with_the_episode() {
+    let config = ModelFreeConfig {
+        extra_obs: ExtraObs {
+            gait_clock_hz: 2.0,
+            ..ExtraObs::default()
+        },
+        ..ModelFreeConfig::default()
+    };
+    config.validate().unwrap();
+    assert_eq!(config.obs_dim(), ModelFreeConfig::default().obs_dim() + 2);
+    let robot = RobotConfig::a1();
+    let model = training_model(&robot, &config).unwrap();
+    let sim = Simulation::with_model(model, &robot).unwrap();
+    let s = sim.ground_truth_state();
+    let q0 = robot.standing_pose();
+    let mut m = PolicyMemory::for_config(&config);
+    m.start(&s, &q0);
+    // 2 Hz at 50 Hz: 25 steps per cycle.
+    for _ in 0..30 {
+        m.push(&s, &q0, &[0.0; 12]);
+    }
+    assert!((m.clock_phase - 0.2).abs() < 1e-9, "{}", m.clock_phase);
+    m.start(&s, &q0);
+    assert_eq!(m.clock_phase, 0.0);
+    // The schedule term needs the clock.
+    let mut bad = ModelFreeConfig::default();
+    bad.rewards.gait_schedule = 1.0;
+    let e = bad.validate().unwrap_err().to_string();
+    assert!(
+        e.contains("gait_schedule") && e.contains("gait_clock_hz"),
+        "{e}"
+    );
+}
+
+#[test]
+fn a_policy_widened_for_a_clock_acts_as_before_whatever_the_clock_reads() {
+    use eemp_rl::config::{TaskKind, TrainConfig};
+    use eemp_rl::policy::Policy;
+    let config = TrainConfig {
+        task: TaskKind::ModelFree,
+        ..TrainConfig::default()
+    };
+    let mut p = Policy::new(&config).unwrap();
+    let d = p.net.obs_dim();
+    let mut rng = ChaCha8Rng::seed_from_u64(9);
+    p.normalizer.mean = (0..d).map(|_| rng.random_range(-1.0..1.0)).collect();
+    p.normalizer.var = (0..d).map(|_| rng.random_range(0.5..2.0)).collect();
+    let o: Vec<f32> = (0..d).map(|_| rng.random_range(-2.0..2.0)).collect();
+    let before = p.act(&o).unwrap();
+    let wide = p.with_appended_inputs(d + 2).unwrap();
+    assert_eq!(wide.net.obs_dim(), d + 2);
+    for clock in [[0.0, 1.0], [0.8, -0.6]] {
+        let mut o2 = o.clone();
+        o2.extend(clock);
+        assert_eq!(wide.act(&o2).unwrap(), before);
+    }
+    assert!(wide.with_appended_inputs(d).is_err());
 }

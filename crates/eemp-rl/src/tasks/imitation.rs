@@ -180,6 +180,15 @@ impl Default for ImitationConfig {
 impl ImitationConfig {
     pub fn validate(&self) -> Result<(), ConfigError> {
         let p = "imitation";
+        if self.extra_obs.gait_clock_hz != 0.0 {
+            return Err(ConfigError::Invalid {
+                name: format!("{p}.extra_obs.gait_clock_hz"),
+                message: format!(
+                    "{} is not allowed: the reference motion's phase is the imitation policy's clock (use 0)",
+                    self.extra_obs.gait_clock_hz
+                ),
+            });
+        }
         check_range(
             &format!("{p}.policy_period_s"),
             self.policy_period_s,

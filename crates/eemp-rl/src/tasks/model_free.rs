@@ -59,6 +59,10 @@ pub struct RewardWeights {
     /// mujoco_playground's feet_clearance: moving feet away from the swing height are
     /// penalised. Without it the policy shuffled with its feet in (soft) contact (measured).
     pub feet_clearance: f64,
+    /// Feet whose contact state matches the gait clock's trot schedule (FL+RR swing in the
+    /// clock's first half, FR+RL in its second), as a share of the four (Walk These Ways'
+    /// contact tracking, binary form). Needs `extra_obs.gait_clock_hz` > 0.
+    pub gait_schedule: f64,
 }
 
 impl Default for RewardWeights {
@@ -78,12 +82,13 @@ impl Default for RewardWeights {
             joint_limits: -10.0,
             energy: 0.0,
             feet_clearance: -2.0,
+            gait_schedule: 0.0,
         }
     }
 }
 
 /// The names of the reward terms, in the order of [`RewardWeights`] and of `train.csv`.
-pub const REWARD_TERMS: [&str; 13] = [
+pub const REWARD_TERMS: [&str; 14] = [
     "tracking_lin_vel",
     "tracking_ang_vel",
     "lin_vel_z",
@@ -97,10 +102,11 @@ pub const REWARD_TERMS: [&str; 13] = [
     "joint_limits",
     "energy",
     "feet_clearance",
+    "gait_schedule",
 ];
 
 impl RewardWeights {
-    fn as_array(&self) -> [f64; 13] {
+    fn as_array(&self) -> [f64; 14] {
         [
             self.tracking_lin_vel,
             self.tracking_ang_vel,
@@ -115,6 +121,7 @@ impl RewardWeights {
             self.joint_limits,
             self.energy,
             self.feet_clearance,
+            self.gait_schedule,
         ]
     }
 }
@@ -129,6 +136,12 @@ pub struct ExtraObs {
     pub base_ang_vel: bool,
     /// Gravity direction in the body frame (IMU attitude).
     pub gravity: bool,
+    /// A gait clock (sin 2πφ, cos 2πφ) at this frequency, Hz, appended last; 0 = none (as
+    /// the shipped baseline). It breaks the standing pose's left–right tie: a mirror-symmetric
+    /// memoryless policy cannot choose which diagonal lifts first (measured: trained from
+    /// scratch with the mirror loss it learned to stand), and the clock's mirror is a
+    /// half-period shift, so the mirror loss then asks for alternating legs.
+    pub gait_clock_hz: f64,
 }
 
 impl Default for ExtraObs {
@@ -137,6 +150,7 @@ impl Default for ExtraObs {
             base_lin_vel: true,
             base_ang_vel: true,
             gravity: true,
+            gait_clock_hz: 0.0,
         }
     }
 }
@@ -346,6 +360,21 @@ impl ModelFreeConfig {
             0.0,
             1.0,
         )?;
+        check_range(
+            "model_free.extra_obs.gait_clock_hz",
+            self.extra_obs.gait_clock_hz,
+            0.0,
+            10.0,
+        )?;
+        if self.rewards.gait_schedule != 0.0 && self.extra_obs.gait_clock_hz == 0.0 {
+            return Err(ConfigError::Invalid {
+                name: "model_free.rewards.gait_schedule".into(),
+                message: format!(
+                    "{} needs a gait clock: set model_free.extra_obs.gait_clock_hz in (0, 10]",
+                    self.rewards.gait_schedule
+                ),
+            });
+        }
         for (i, &mu) in self.floor_frictions.iter().enumerate() {
             eemp_core::config_error::check_friction(
                 &format!("model_free.floor_frictions[{i}]"),
@@ -366,6 +395,7 @@ pub fn base_obs_dim(e: &ExtraObs, history: usize) -> usize {
         + 3
         + 3 * (e.base_lin_vel as usize + e.base_ang_vel as usize + e.gravity as usize)
         + FRAME * history
+        + 2 * (e.gait_clock_hz > 0.0) as usize
 }
 
 /// The left–right mirror of [`observe`]'s layout (`crate::mirror`). It holds when the standing
@@ -389,8 +419,12 @@ pub fn observation_mirror(extra: &ExtraObs, history: usize) -> MirrorMap {
     if extra.gravity {
         b = b.vector(POLAR);
     }
-    b.repeat(history, |f| f.per_leg(JOINTS).per_leg(JOINTS))
-        .build()
+    b = b.repeat(history, |f| f.per_leg(JOINTS).per_leg(JOINTS));
+    if extra.gait_clock_hz > 0.0 {
+        // φ ↦ φ + ½: the mirrored robot is half a cycle on.
+        b = b.scalar(-1.0).scalar(-1.0);
+    }
+    b.build()
 }
 
 /// The left–right mirror of the actions (joint targets about q₀).
@@ -422,6 +456,11 @@ pub struct PolicyMemory {
     /// Newest first.
     pub history: VecDeque<Vec<f32>>,
     pub last_torques: [f64; 12],
+    /// The gait clock's phase φ ∈ [0, 1) and its advance per policy step (0: no clock).
+    #[serde(default)]
+    pub clock_phase: f64,
+    #[serde(default)]
+    pub clock_step: f64,
 }
 
 impl PolicyMemory {
@@ -430,7 +469,16 @@ impl PolicyMemory {
             prev_action: vec![0.0; ACT_DIM],
             history: std::iter::repeat_n(vec![0.0; FRAME], history).collect(),
             last_torques: [0.0; 12],
+            clock_phase: 0.0,
+            clock_step: 0.0,
         }
+    }
+
+    /// The memory of a model-free policy of `config` (history and gait clock).
+    pub fn for_config(config: &ModelFreeConfig) -> Self {
+        let mut m = Self::new(config.history);
+        m.clock_step = config.extra_obs.gait_clock_hz * config.policy_period_s;
+        m
     }
 
     /// Fills the history with the current frame (an episode's start).
@@ -441,11 +489,13 @@ impl PolicyMemory {
         }
         self.prev_action.iter_mut().for_each(|a| *a = 0.0);
         self.last_torques = [0.0; 12];
+        self.clock_phase = 0.0;
     }
 
     /// After a policy step: remember the action and push the frame of the state it acted on.
     pub fn push(&mut self, state: &RobotState, q0: &LegMap<Vector3<f64>>, action: &[f32]) {
         self.prev_action.copy_from_slice(action);
+        self.clock_phase = (self.clock_phase + self.clock_step).rem_euclid(1.0);
         if !self.history.is_empty() {
             self.history.pop_back();
             self.history.push_front(frame(state, q0));
@@ -515,6 +565,11 @@ pub fn observe(
     }
     for h in &memory.history {
         h.iter().for_each(|&v| put(v as f64));
+    }
+    if e.gait_clock_hz > 0.0 {
+        let a = std::f64::consts::TAU * memory.clock_phase;
+        put(a.sin());
+        put(a.cos());
     }
     i
 }
@@ -627,6 +682,25 @@ pub fn feet_clearance(sole_heights_m: &[f64; 4], speeds_xy: &[f64; 4], target_m:
         .zip(speeds_xy)
         .map(|(z, v)| (z - target_m).abs() * v.sqrt())
         .sum()
+}
+
+/// Which feet the trot schedule wants on the ground at clock phase φ: FL and RR swing in
+/// [0, ½), FR and RL in [½, 1).
+pub fn scheduled_stance(clock_phase: f64) -> LegMap<bool> {
+    let first_half = clock_phase.rem_euclid(1.0) < 0.5;
+    LegMap::from_fn(|leg| match leg {
+        Leg::FrontLeft | Leg::RearRight => !first_half,
+        Leg::FrontRight | Leg::RearLeft => first_half,
+    })
+}
+
+/// Share of the feet whose contact state is the schedule's, in [0, 1].
+pub fn gait_schedule(loaded: &LegMap<bool>, scheduled: &LegMap<bool>) -> f64 {
+    Leg::ALL
+        .iter()
+        .filter(|&&l| loaded[l] == scheduled[l])
+        .count() as f64
+        / 4.0
 }
 
 /// Σ |q̇ τ|, W.
@@ -769,7 +843,7 @@ impl ModelFreeEnv {
                 targets: q0,
                 torque_limit_nm: robot.leg.torque_limit_nm,
             },
-            memory: PolicyMemory::new(config.history),
+            memory: PolicyMemory::for_config(&config),
             command: VelocityCommand::default(),
             steps: 0,
             max_steps: (config.episode_s / config.policy_period_s).round() as usize,
@@ -999,6 +1073,8 @@ impl Env for ModelFreeEnv {
             joint_limits(&q, &self.joint_ranges),
             energy(&qd, &last_tau),
             feet_clearance(&sole, &speed, cfg.clearance_height_m),
+            // The phase the period just ran under (push() below advances it).
+            gait_schedule(&contacts, &scheduled_stance(self.memory.clock_phase)),
         ];
         let mut reward = 0.0;
         for ((t, v), w) in terms.iter_mut().zip(values).zip(cfg.rewards.as_array()) {
