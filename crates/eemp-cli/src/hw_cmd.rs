@@ -3,7 +3,6 @@
 
 use eemp_core::estimator::KfConfig;
 use eemp_core::hardware::a1_protocol::LowState;
-use eemp_core::hardware::robot_io::motor_index;
 use eemp_core::hardware::safety::SafetyConfig;
 use eemp_core::leg::Leg;
 use eemp_core::planner::params_table::ParamsTable;
@@ -53,8 +52,11 @@ impl FaultArgs {
 #[command(allow_negative_numbers = true)]
 pub struct HwArgs {
     /// The robot's address (the A1: 192.168.123.10:8007; `eemp sim-robot`: 127.0.0.1:PORT).
+    /// (Before robot files took `--robot`, this was `--robot`.)
     #[arg(long, required_unless_present = "dry_run")]
-    pub robot: Option<SocketAddr>,
+    pub address: Option<SocketAddr>,
+    #[command(flatten)]
+    pub robot: crate::robot_arg::RobotArgs,
     /// Local address to send from (the SDK uses port 8080).
     #[arg(long, default_value = "0.0.0.0:8080")]
     pub bind: SocketAddr,
@@ -66,7 +68,7 @@ pub struct HwArgs {
     pub controller: String,
     #[arg(long)]
     pub policy: Option<PathBuf>,
-    /// EEMP's gait and per-speed table (default tables/a1_<gait>.toml).
+    /// EEMP's gait and per-speed table (default tables/<robot>_<gait>.toml).
     #[arg(long, default_value = "trot")]
     pub gait: String,
     #[arg(long)]
@@ -119,8 +121,9 @@ fn controller_for(
             let table = args
                 .params_table
                 .clone()
-                .unwrap_or_else(|| PathBuf::from(format!("tables/a1_{gait}.toml")));
+                .unwrap_or_else(|| crate::robot_arg::shipped_table_path(robot, gait));
             spec.params_table = Some(ParamsTable::load(&table).map_err(|e| e.to_string())?);
+            spec.allow_robot_mismatch = args.robot.allow_robot_mismatch;
             Ok(Box::new(
                 eemp_controller(robot, &spec).map_err(|e| e.to_string())?,
             ))
@@ -130,7 +133,8 @@ fn controller_for(
                 .policy
                 .as_ref()
                 .ok_or_else(|| format!("--controller {c} needs --policy FILE"))?;
-            let policy = eemp_rl::policy::Policy::load(p, Some(c.parse()?))?;
+            let mut policy = eemp_rl::policy::Policy::load(p, Some(c.parse()?))?;
+            policy.allow_robot_mismatch = args.robot.allow_robot_mismatch;
             Ok(Box::new(eemp_rl::controller::PolicyController::new(
                 policy, robot, dt,
             )?))
@@ -147,16 +151,33 @@ fn standing_state(robot: &RobotConfig) -> LowState {
     s.imu.quaternion = [1.0, 0.0, 0.0, 0.0];
     s.imu.accelerometer = [0.0, 0.0, 9.81];
     let q = robot.standing_pose();
+    let order = robot.motor_order();
     for leg in Leg::ALL {
         for j in 0..3 {
-            s.motors[motor_index(leg, j)].q = q[leg][j] as f32;
+            s.motors[order.index(leg, j)].q = q[leg][j] as f32;
         }
     }
     s
 }
 
+/// The UDP link speaks the A1's protocol only: another robot's low level is refused, named.
+fn check_udp(robot: &RobotConfig) -> Result<(), String> {
+    use eemp_core::robot::LowLevelProtocol;
+    match robot.sdk.protocol {
+        LowLevelProtocol::A1Udp => Ok(()),
+        p => Err(format!(
+            "robot '{}' speaks '{}' (sdk.protocol), not the A1's UDP protocol this link \
+             implements; the Go2's DDS link is not built yet, and the Go1 has no checked codec \
+             (simulate it with eemp walk / stand --robot instead)",
+            robot.name,
+            p.name()
+        )),
+    }
+}
+
 pub fn run_hw_cmd(args: &HwArgs) -> Result<(), String> {
-    let robot = RobotConfig::a1();
+    let robot = args.robot.load()?;
+    check_udp(&robot)?;
     let safety: SafetyConfig = match &args.safety {
         Some(p) => eemp_core::config_error::load_toml(p).map_err(|e| e.to_string())?,
         None => SafetyConfig::default(),
@@ -176,7 +197,9 @@ pub fn run_hw_cmd(args: &HwArgs) -> Result<(), String> {
         }
     } else {
         Transport::Udp {
-            robot: args.robot.expect("clap requires --robot without --dry-run"),
+            robot: args
+                .address
+                .expect("clap requires --address without --dry-run"),
             bind: args.bind,
             faults: args.faults.faults(),
         }
@@ -264,7 +287,8 @@ pub fn run_hw_cmd(args: &HwArgs) -> Result<(), String> {
     })?;
     let summary = serde_json::json!({
         "controller": args.controller,
-        "robot": args.robot.map(|a| a.to_string()),
+        "address": args.address.map(|a| a.to_string()),
+        "robot": crate::robot_arg::robot_json(&robot, args.robot.allow_robot_mismatch),
         "dry_run": args.dry_run,
         "rate_hz": args.rate,
         "command": {"vx_mps": args.speed, "vy_mps": args.lateral, "yaw_rate_rps": args.yaw_rate},
@@ -294,6 +318,9 @@ pub struct SimRobotArgs {
     pub freeze_after: Option<f64>,
     #[command(flatten)]
     pub faults: FaultArgs,
+    /// Robot description (default: the shipped A1); it must speak the A1's UDP protocol.
+    #[arg(long)]
+    pub robot: Option<PathBuf>,
     /// summary.json and truth.csv (100 Hz) go here.
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -306,7 +333,8 @@ pub fn run_sim_robot_cmd(args: &SimRobotArgs) -> Result<(), String> {
             args.duration
         ));
     }
-    let robot = RobotConfig::a1();
+    let robot = crate::robot_arg::load_robot(args.robot.as_deref())?;
+    check_udp(&robot)?;
     // Standing as EEMP starts (Table II's trunk height, feet under the hips).
     let spec = WalkSpec::constant(
         PlannerConfig::default(),

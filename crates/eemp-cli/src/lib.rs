@@ -7,6 +7,7 @@ pub mod output;
 pub mod plots;
 pub mod replay_cmd;
 pub mod retarget_cmd;
+pub mod robot_arg;
 pub mod stand_cmd;
 pub mod state_source_arg;
 pub mod suite;

@@ -4,7 +4,6 @@ use crate::output::{create_dir, write_json, Trace};
 use crate::plots::{line_panels, Panel, Series};
 use eemp_core::config_error::load_toml;
 use eemp_core::controller::ControllerConfig;
-use eemp_core::robot::RobotConfig;
 use eemp_core::stand_profile::BodyMotionProfile;
 use eemp_sim::closed_loop::{percentile, Push};
 use eemp_sim::stand::run_stand_on;
@@ -38,7 +37,8 @@ pub struct StandArgs {
     pub trace_hz: f64,
     #[command(flatten)]
     pub sensing: crate::state_source_arg::StateSourceArgs,
-    /// Robot description (default: the shipped A1, robots/a1.toml).
+    /// Robot description: robots/a1.toml (the default, compiled in), robots/go2.toml,
+    /// robots/go1.toml, or your own file.
     #[arg(long)]
     pub robot: Option<PathBuf>,
     /// Output folder.
@@ -54,10 +54,7 @@ pub fn run(args: &StandArgs) -> Result<(), String> {
             args.duration
         ));
     }
-    let robot = match &args.robot {
-        Some(p) => RobotConfig::load(p).map_err(|e| e.to_string())?,
-        None => RobotConfig::a1(),
-    };
+    let robot = crate::robot_arg::load_robot(args.robot.as_deref())?;
     let profile: BodyMotionProfile = match &args.profile {
         Some(p) => load_toml(p).map_err(|e| e.to_string())?,
         None => BodyMotionProfile::default(),

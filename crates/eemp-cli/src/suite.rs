@@ -144,6 +144,13 @@ pub struct SuiteConfig {
     pub methods: Vec<MethodConfig>,
     #[serde(rename = "scenario")]
     pub scenarios: Vec<ScenarioConfig>,
+    /// The robot file every run simulates (default: the shipped A1); `eemp compare|robustness
+    /// --robot FILE` sets it. Tables default to `tables/<robot>_<gait>.toml`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub robot: Option<PathBuf>,
+    /// Run tables and policies made for another robot (an experiment).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub allow_robot_mismatch: bool,
 }
 
 fn default_duration() -> f64 {
@@ -238,6 +245,11 @@ const HEADER: &str = "run_id,method,scenario,speed_mps,seed,fell,fell_at_s,vel_r
 pub const CONFIG: &str = "suite.toml";
 
 impl SuiteConfig {
+    /// The robot every run simulates.
+    pub fn robot_config(&self) -> Result<RobotConfig, String> {
+        crate::robot_arg::load_robot(self.robot.as_deref())
+    }
+
     pub fn load(path: &Path) -> Result<Self, String> {
         let c: SuiteConfig = eemp_core::config_error::load_toml(path).map_err(|e| e.to_string())?;
         c.validate()
@@ -258,15 +270,12 @@ impl SuiteConfig {
                 "a suite needs at least one seed, one [[method]] and one [[scenario]]".into(),
             );
         }
-        crate::state_source_arg::state_source(&self.estimator, false, 0, &RobotConfig::a1())?;
+        let robot = self.robot_config()?;
+        crate::state_source_arg::state_source(&self.estimator, false, 0, &robot)?;
         for m in &self.methods {
-            let mut source = crate::state_source_arg::state_source(
-                m.estimator(self),
-                false,
-                0,
-                &RobotConfig::a1(),
-            )
-            .map_err(|e| format!("method '{}': {e}", m.name))?;
+            let mut source =
+                crate::state_source_arg::state_source(m.estimator(self), false, 0, &robot)
+                    .map_err(|e| format!("method '{}': {e}", m.name))?;
             m.apply_kf_options(&mut source)?;
         }
         // Run ids must be unique (resume finds runs by id).
@@ -298,8 +307,15 @@ impl SuiteConfig {
                     let t = m
                         .table
                         .clone()
-                        .unwrap_or_else(|| format!("tables/a1_{g}.toml").into());
-                    ParamsTable::load(&t).map_err(|e| format!("method '{}': {e}", m.name))?;
+                        .unwrap_or_else(|| crate::robot_arg::shipped_table_path(&robot, g));
+                    let table = ParamsTable::load(&t)
+                        .map_err(|e| format!("method '{}': {e}", m.name))?;
+                    if !self.allow_robot_mismatch {
+                        table
+                            .robot_id()
+                            .check(&robot, &t.display().to_string())
+                            .map_err(|e| format!("method '{}': {e}", m.name))?;
+                    }
                     if m.free_pairing.is_some() && g != Gait::Free {
                         return Err(format!(
                             "method '{}': free_pairing is for gait free, not {g}",
@@ -330,7 +346,11 @@ impl SuiteConfig {
                     let p = m.policy.as_ref().ok_or_else(|| {
                         format!("method '{}': kind {k} needs policy = FILE", m.name)
                     })?;
-                    Policy::load(p, Some(k.parse()?))
+                    let mut policy = Policy::load(p, Some(k.parse()?))
+                        .map_err(|e| format!("method '{}': {e}", m.name))?;
+                    policy.allow_robot_mismatch = self.allow_robot_mismatch;
+                    policy
+                        .check_robot(&robot)
                         .map_err(|e| format!("method '{}': {e}", m.name))?;
                 }
                 other => {
@@ -468,8 +488,9 @@ pub fn simulate(
             let t = m
                 .table
                 .clone()
-                .unwrap_or_else(|| format!("tables/a1_{gait}.toml").into());
+                .unwrap_or_else(|| crate::robot_arg::shipped_table_path(robot, gait));
             spec.params_table = Some(ParamsTable::load(&t).map_err(|e| e.to_string())?);
+            spec.allow_robot_mismatch = cfg.allow_robot_mismatch;
             if let Some(on) = m.adapt_friction {
                 spec.controller.slip.adapt_friction = on;
             }
@@ -478,10 +499,11 @@ pub fn simulate(
             run_walk_with(robot, &spec, &start, &mut c, &mut observe)
         }
         "eemp-rl" => {
-            let p = Policy::load(
+            let mut p = Policy::load(
                 m.policy.as_ref().ok_or("no policy")?,
                 Some(TaskKind::EempRl),
             )?;
+            p.allow_robot_mismatch = cfg.allow_robot_mismatch;
             adopt_policy_filter(&mut spec.state_source, &p, &m.kf_options());
             let cfg = p.config.eemp_rl.clone();
             let start = EempRlController::<Policy>::start_pose(
@@ -494,7 +516,8 @@ pub fn simulate(
         }
         k => {
             let task: TaskKind = k.parse()?;
-            let p = Policy::load(m.policy.as_ref().ok_or("no policy")?, Some(task))?;
+            let mut p = Policy::load(m.policy.as_ref().ok_or("no policy")?, Some(task))?;
+            p.allow_robot_mismatch = cfg.allow_robot_mismatch;
             adopt_policy_filter(&mut spec.state_source, &p, &m.kf_options());
             let mut c = PolicyController::new(p, robot, robot.simulation.timestep_s)?;
             let start = StartPose::from_joints(robot, c.default_pose());
@@ -603,7 +626,7 @@ pub fn run_suite(
             .map_err(|e| format!("cannot append to {}: {e}", path.display()))?,
     );
     let finished = Mutex::new(rows.len());
-    let robot = RobotConfig::a1();
+    let robot = cfg.robot_config()?;
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads.max(1))
         .build()

@@ -20,6 +20,12 @@ pub struct SuiteArgs {
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
+    /// Robot file for every run, over the suite's `robot` key (default: the shipped A1).
+    #[arg(long)]
+    pub robot: Option<PathBuf>,
+    /// Run tables and policies made for another robot (an experiment).
+    #[arg(long)]
+    pub allow_robot_mismatch: bool,
 }
 
 /// Mean, min and max over the runs that did not fall; falls and runs.
@@ -226,7 +232,15 @@ fn run(args: &SuiteArgs, default: &str) -> Result<(SuiteConfig, Vec<SuiteRow>), 
         .config
         .clone()
         .unwrap_or_else(|| PathBuf::from(default));
-    let cfg = SuiteConfig::load(&path)?;
+    let mut cfg = SuiteConfig::load(&path)?;
+    if args.robot.is_some() || args.allow_robot_mismatch {
+        if let Some(r) = &args.robot {
+            cfg.robot = Some(r.clone());
+        }
+        cfg.allow_robot_mismatch |= args.allow_robot_mismatch;
+        cfg.validate()
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+    }
     let total = cfg.runs()?.len();
     let bar = ProgressBar::new(total as u64);
     bar.set_style(

@@ -60,7 +60,11 @@ pub fn write_report(dir: &Path, tables_out: Option<&Path>) -> Result<Vec<String>
     let tables: Vec<_> = own
         .written
         .iter()
-        .map(|t| (t.0, Path::new(TABLES_DIR).join(table_file_name(t.0))))
+        .map(|t| {
+            let name = t.1.file_name().map(|n| n.to_string_lossy().into_owned());
+            let name = name.unwrap_or_else(|| table_file_name("a1", t.0));
+            (t.0, Path::new(TABLES_DIR).join(name))
+        })
         .collect();
     let figures = draw_figures(dir, &config.grid.speed_mps, &study)?;
     written.extend(

@@ -5,7 +5,6 @@
 
 use crate::plots::{line_panels, Panel, Series};
 use eemp_core::planner::{PlannerConfig, PlannerParams, VelocityCommand};
-use eemp_core::robot::RobotConfig;
 use eemp_core::teleop::{
     key_step, CommandShaper, JsEvent, OperatorInput, PadMapping, PadState, TeleopConfig,
 };
@@ -45,6 +44,8 @@ pub struct TeleopArgs {
     pub estimator: String,
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    #[command(flatten)]
+    pub robot: crate::robot_arg::RobotArgs,
     #[arg(long)]
     pub out: PathBuf,
 }
@@ -113,7 +114,7 @@ pub fn run(args: &TeleopArgs) -> Result<(), String> {
         None => TeleopConfig::default(),
     };
     let mut shaper = CommandShaper::new(cfg.clone()).map_err(|e| e.to_string())?;
-    let robot = RobotConfig::a1();
+    let robot = args.robot.load()?;
     let script = match &args.commands {
         Some(p) => {
             let prof: VelocityProfile =
@@ -149,12 +150,12 @@ pub fn run(args: &TeleopArgs) -> Result<(), String> {
         VelocityCommand::default(),
         duration,
     );
+    let table = crate::robot_arg::shipped_table_path(&robot, gait);
     spec.params_table = Some(
-        eemp_core::planner::params_table::ParamsTable::load(&PathBuf::from(format!(
-            "tables/a1_{gait}.toml"
-        )))
-        .map_err(|e| e.to_string())?,
+        eemp_core::planner::params_table::ParamsTable::load(&table)
+            .map_err(|e| format!("{e} (the per-speed {gait} table of robot '{}')", robot.name))?,
     );
+    spec.allow_robot_mismatch = args.robot.allow_robot_mismatch;
     spec.state_source =
         crate::state_source_arg::state_source(&args.estimator, false, args.seed, &robot)?;
     spec.metrics_start_s = 0.0;

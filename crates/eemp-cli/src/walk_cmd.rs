@@ -6,7 +6,6 @@ use eemp_core::config_error::load_toml;
 use eemp_core::leg::Leg;
 use eemp_core::metrics::positive_power_w;
 use eemp_core::planner::{FreePairing, Gait, PlannerConfig, PlannerParams, VelocityCommand};
-use eemp_core::robot::RobotConfig;
 use eemp_sim::closed_loop::Push;
 use eemp_sim::walk::{run_walk, run_walk_with, StartPose, VelocityProfile, WalkSpec};
 use nalgebra::Vector3;
@@ -117,9 +116,8 @@ pub struct WalkArgs {
     /// about a quarter of the run time).
     #[arg(long, default_value_t = 100.0)]
     pub trace_hz: f64,
-    /// Robot description (default: the shipped A1, robots/a1.toml).
-    #[arg(long)]
-    pub robot: Option<PathBuf>,
+    #[command(flatten)]
+    pub robot: crate::robot_arg::RobotArgs,
     /// Also write a video of the walk (animated GIF, 25 frames/s, rendered offscreen).
     #[arg(long)]
     pub video: Option<PathBuf>,
@@ -183,9 +181,14 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
             args.duration
         ));
     }
-    let robot = match &args.robot {
-        Some(p) => RobotConfig::load(p).map_err(|e| e.to_string())?,
-        None => RobotConfig::a1(),
+    let robot = args.robot.load()?;
+    let driver = match driver {
+        Driver::Policy(mut p) => {
+            p.allow_robot_mismatch = args.robot.allow_robot_mismatch;
+            p.check_robot(&robot)?;
+            Driver::Policy(p)
+        }
+        d => d,
     };
     let params: PlannerParams = match &args.params {
         Some(p) => load_toml(p).map_err(|e| e.to_string())?,
@@ -197,6 +200,17 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
         ),
         None => None,
     };
+    if let (Some(t), false) = (&params_table, args.robot.allow_robot_mismatch) {
+        t.robot_id().check(
+            &robot,
+            &args
+                .params_table
+                .as_ref()
+                .expect("loaded")
+                .display()
+                .to_string(),
+        )?;
+    }
     if let Some(f) = args.progress_factor {
         let [lo, hi] = eemp_core::planner::PROGRESS_FACTOR_RANGE;
         if !(f.is_finite() && (lo..=hi).contains(&f)) {
@@ -247,6 +261,7 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
     }
     spec.seed = args.sensing.seed;
     spec.state_source = args.sensing.source(&robot)?;
+    spec.allow_robot_mismatch = args.robot.allow_robot_mismatch;
     if let Driver::Policy(p) = &driver {
         crate::state_source_arg::adopt_policy_filter(
             &mut spec.state_source,
@@ -549,6 +564,10 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
         ),
         ("cot_abs_power", serde_json::json!(m.cot_abs_power)),
         ("gait_measure", serde_json::json!(run.gait)),
+        (
+            "robot",
+            crate::robot_arg::robot_json(&robot, args.robot.allow_robot_mismatch),
+        ),
         (
             // What slip handling believed the floor's friction to be (the MPC's coefficient,
             // never above its nominal) and the floor it walked on.

@@ -296,7 +296,7 @@ fn bad_clips_and_motions_exit_2_name_the_file_frame_and_marker_and_write_nothing
 #[test]
 fn bad_hardware_input_exits_2_names_the_value_and_writes_nothing() {
     let dir = scratch("hw");
-    let cases: [(&[&str], &[&str]); 6] = [
+    let cases: [(&[&str], &[&str]); 8] = [
         (
             &["hw", "--dry-run", "--speed", "9"],
             &["--speed 9", "[-1.5, 1.5]"],
@@ -306,10 +306,27 @@ fn bad_hardware_input_exits_2_names_the_value_and_writes_nothing() {
             &["rate 5 Hz", "[50, 2000]"],
         ),
         (
-            &["hw", "--robot", "127.0.0.1:9", "--drop", "1.5"],
+            &["hw", "--address", "127.0.0.1:9", "--drop", "1.5"],
             &["drop_prob = 1.5", "[0, 1]"],
         ),
-        (&["hw", "--speed", "0.3"], &["--robot"]),
+        (&["hw", "--speed", "0.3"], &["--address"]),
+        (
+            &[
+                "hw",
+                "--dry-run",
+                "--robot",
+                concat!(env!("CARGO_MANIFEST_DIR"), "/../../robots/go2.toml"),
+            ],
+            &["go2-dds", "sdk.protocol"],
+        ),
+        (
+            &[
+                "sim-robot",
+                "--robot",
+                concat!(env!("CARGO_MANIFEST_DIR"), "/../../robots/go1.toml"),
+            ],
+            &["'go1'", "'none'"],
+        ),
         (
             &["hw", "--dry-run", "--controller", "imitation"],
             &["--policy"],
@@ -480,4 +497,63 @@ fn bad_friction_and_baseline_input_exits_2_names_the_key_and_writes_nothing() {
         }
         assert!(!wrote, "{args:?} wrote its output");
     }
+}
+
+#[test]
+fn artifacts_of_another_robot_are_refused_naming_both_unless_allowed() {
+    let dir = scratch("robot-mismatch");
+    let go1 = concat!(env!("CARGO_MANIFEST_DIR"), "/../../robots/go1.toml");
+    let table = concat!(env!("CARGO_MANIFEST_DIR"), "/../../tables/a1_trot.toml");
+    let policy = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../policies/a1_model_free.safetensors"
+    );
+    for args in [
+        vec![
+            "walk",
+            "--robot",
+            go1,
+            "--gait",
+            "trot",
+            "--params-table",
+            table,
+        ],
+        vec![
+            "walk",
+            "--robot",
+            go1,
+            "--controller",
+            "model-free",
+            "--policy",
+            policy,
+        ],
+    ] {
+        let (code, err, wrote) = eemp(&dir, &[&args[..], &["--duration", "0.5"]].concat());
+        assert_eq!(code, Some(2), "{args:?}: {err}");
+        assert!(err.contains("'a1'") && err.contains("'go1'"), "{err}");
+        assert!(err.contains("--allow-robot-mismatch"), "{err}");
+        assert!(!wrote, "{args:?} wrote output");
+    }
+    // Allowed for an experiment, and said in summary.json.
+    let (code, err, _) = eemp(
+        &dir,
+        &[
+            "walk",
+            "--robot",
+            go1,
+            "--gait",
+            "trot",
+            "--params-table",
+            table,
+            "--allow-robot-mismatch",
+            "--duration",
+            "0.5",
+        ],
+    );
+    assert_eq!(code, Some(0), "{err}");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("out/summary.json")).unwrap())
+            .unwrap();
+    assert_eq!(summary["robot"]["name"], "go1");
+    assert_eq!(summary["robot"]["allow_robot_mismatch"], true);
 }

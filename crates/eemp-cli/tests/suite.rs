@@ -55,6 +55,8 @@ fn config() -> SuiteConfig {
                 profile: None,
             },
         ],
+        robot: None,
+        allow_robot_mismatch: false,
     }
 }
 

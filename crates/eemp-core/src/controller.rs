@@ -97,7 +97,7 @@ pub struct LocomotionController {
     config: ControllerConfig,
     kinematics: LegKinematics,
     mpc: ConvexMpc,
-    torque_limit_nm: f64,
+    torque_limit_nm: [f64; 3],
     forces_world: LegMap<Vector3<f64>>,
     last_solve_time_s: Option<f64>,
     last_stance: LegMap<bool>,
@@ -229,7 +229,7 @@ impl LocomotionController {
                 )
             }
         };
-        clamp_torque(&tau, self.torque_limit_nm)
+        clamp_torque(&tau, &self.torque_limit_nm)
     }
 
     pub fn kinematics(&self) -> &LegKinematics {

@@ -45,11 +45,11 @@ pub fn pd_torques(
     targets: &LegMap<Vector3<f64>>,
     q: &LegMap<Vector3<f64>>,
     qd: &LegMap<Vector3<f64>>,
-    torque_limit_nm: f64,
+    torque_limit_nm: [f64; 3],
 ) -> LegMap<Vector3<f64>> {
     LegMap::from_fn(|leg| {
         let tau = (targets[leg] - q[leg]) * gains.kp_nm_per_rad - qd[leg] * gains.kd_nm_s_per_rad;
-        clamp_torque(&tau, torque_limit_nm)
+        clamp_torque(&tau, &torque_limit_nm)
     })
 }
 
@@ -58,7 +58,8 @@ pub fn pd_torques(
 pub struct JointPd {
     pub gains: PdGains,
     pub targets: LegMap<Vector3<f64>>,
-    pub torque_limit_nm: f64,
+    /// Per joint (abduction, thigh, calf), N·m.
+    pub torque_limit_nm: [f64; 3],
 }
 
 impl Controller for JointPd {
@@ -90,11 +91,11 @@ mod tests {
         let targets = LegMap::splat(Vector3::new(0.1, 0.9, -1.8));
         let q = LegMap::splat(Vector3::new(0.0, 1.0, -1.8));
         let qd = LegMap::splat(Vector3::new(2.0, 0.0, -4.0));
-        let tau = pd_torques(&gains, &targets, &q, &qd, 33.5);
+        let tau = pd_torques(&gains, &targets, &q, &qd, [33.5; 3]);
         // 20·0.1 − 0.5·2 = 1; 20·(−0.1) = −2; 0.5·4 = 2.
         assert!((tau.0[0] - Vector3::new(1.0, -2.0, 2.0)).norm() < 1e-12);
         let far = LegMap::splat(Vector3::new(3.0, 0.0, 0.0));
-        let tau = pd_torques(&gains, &far, &q, &qd, 33.5);
+        let tau = pd_torques(&gains, &far, &q, &qd, [33.5; 3]);
         assert!((tau.0[0].x - 33.5).abs() < 1e-12);
     }
 }

@@ -40,7 +40,7 @@ pub struct LegKinematics {
     thigh_length_m: f64,
     calf_length_m: f64,
     foot_radius_m: f64,
-    joint_range_rad: [[f64; 2]; 3],
+    joint_range_rad: LegMap<[[f64; 2]; 3]>,
 }
 
 impl LegKinematics {
@@ -58,7 +58,7 @@ impl LegKinematics {
             thigh_length_m: l.thigh_length_m,
             calf_length_m: l.calf_length_m,
             foot_radius_m: l.foot_radius_m,
-            joint_range_rad: [l.abduction_range_rad, l.thigh_range_rad, l.calf_range_rad],
+            joint_range_rad: LegMap::from_fn(|leg| robot.joint_ranges_rad(leg)),
         }
     }
 
@@ -177,7 +177,7 @@ impl LegKinematics {
         let q1 = (-p.x).atan2(big_l) - (l3 * q2.sin()).atan2(l2 + l3 * q2.cos());
         let q = Vector3::new(q0, q1, q2);
         for j in 0..3 {
-            let [lo, hi] = self.joint_range_rad[j];
+            let [lo, hi] = self.joint_range_rad[leg][j];
             if q[j] < lo - 1e-9 || q[j] > hi + 1e-9 {
                 return Err(IkError::Unreachable {
                     leg,
@@ -203,9 +203,9 @@ impl LegKinematics {
         }
     }
 
-    /// Joint range [min, max] of joint `j` (0 abduction, 1 thigh, 2 calf), rad.
-    pub fn joint_range(&self, j: usize) -> [f64; 2] {
-        self.joint_range_rad[j]
+    /// Joint range [min, max] of joint `j` (0 abduction, 1 thigh, 2 calf) of `leg`, rad.
+    pub fn joint_range(&self, leg: Leg, j: usize) -> [f64; 2] {
+        self.joint_range_rad[leg][j]
     }
 
     pub fn calf_length_m(&self) -> f64 {

@@ -127,10 +127,11 @@ pub fn stance_torque(
 }
 
 /// Clamps each joint torque to ±limit and replaces non-finite values by 0.
-pub fn clamp_torque(tau: &Vector3<f64>, limit_nm: f64) -> Vector3<f64> {
-    tau.map(|t| {
+pub fn clamp_torque(tau: &Vector3<f64>, limits_nm: &[f64; 3]) -> Vector3<f64> {
+    Vector3::from_fn(|j, _| {
+        let t = tau[j];
         if t.is_finite() {
-            t.clamp(-limit_nm, limit_nm)
+            t.clamp(-limits_nm[j], limits_nm[j])
         } else {
             0.0
         }
@@ -195,7 +196,11 @@ mod tests {
 
     #[test]
     fn clamp_respects_the_limit_and_removes_nan() {
-        let t = clamp_torque(&Vector3::new(50.0, -50.0, f64::NAN), 33.5);
+        let t = clamp_torque(&Vector3::new(50.0, -50.0, f64::NAN), &[33.5; 3]);
         assert_eq!(t, Vector3::new(33.5, -33.5, 0.0));
+        // Per joint (the Go2: 23.7 N·m at hip and thigh, 45.43 N·m at the knee).
+        let go2 = [23.7, 23.7, 45.43];
+        let t = clamp_torque(&Vector3::new(-30.0, 30.0, 50.0), &go2);
+        assert_eq!(t, Vector3::new(-23.7, 23.7, 45.43));
     }
 }

@@ -17,6 +17,152 @@ pub struct RobotConfig {
     pub simulation: SimulationConfig,
     pub trunk: TrunkConfig,
     pub leg: LegConfig,
+    /// How the robot's own SDK numbers its motors (the hardware codecs read this).
+    #[serde(default)]
+    pub sdk: SdkConfig,
+}
+
+/// The robot SDK's motor numbering: motors 3k, 3k+1, 3k+2 are (abduction, thigh, calf) of
+/// `leg_order[k]`. Unitree's A1, Go1 and Go2 SDKs all use FR, FL, RR, RL (the default);
+/// Menagerie's Go2 MJCF lists its bodies FL, FR, RL, RR, which is why the file says it apart
+/// from the (generated) model's body order.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct SdkConfig {
+    /// Leg short names ("FR", "FL", "RR", "RL"), a permutation.
+    #[serde(default = "unitree_leg_order")]
+    pub leg_order: [String; 4],
+    /// The low-level interface the robot speaks.
+    #[serde(default)]
+    pub protocol: LowLevelProtocol,
+}
+
+fn unitree_leg_order() -> [String; 4] {
+    ["FR", "FL", "RR", "RL"].map(String::from)
+}
+
+impl Default for SdkConfig {
+    fn default() -> Self {
+        SdkConfig {
+            leg_order: unitree_leg_order(),
+            protocol: LowLevelProtocol::default(),
+        }
+    }
+}
+
+/// A robot's low-level interface (what `eemp hw` and `eemp sim-robot` must speak).
+#[derive(Clone, Copy, Debug, Default, Serialize, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "kebab-case")]
+pub enum LowLevelProtocol {
+    /// The A1's UDP datagrams (unitree_legged_sdk 3.3), the project's `a1_protocol`.
+    #[default]
+    A1Udp,
+    /// unitree_sdk2's DDS topics rt/lowcmd / rt/lowstate (the Go2); no codec in the project yet.
+    Go2Dds,
+    /// No codec the project can check against the real robot (the Go1's UDP wire format is
+    /// known only from third-party reverse engineering): simulation only.
+    None,
+}
+
+impl LowLevelProtocol {
+    pub fn name(self) -> &'static str {
+        match self {
+            LowLevelProtocol::A1Udp => "a1-udp",
+            LowLevelProtocol::Go2Dds => "go2-dds",
+            LowLevelProtocol::None => "none",
+        }
+    }
+}
+
+/// Which robot an artifact (a table, a policy, a suite) was made for: the robot file's name and
+/// a hash of its physical numbers (trunk and legs: masses, inertias, geometry, ranges, limits),
+/// so an edited or another robot is told apart even under the same name.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq, Eq)]
+#[serde(deny_unknown_fields)]
+pub struct RobotId {
+    pub name: String,
+    /// FNV-1a (64 bit) of the canonical TOML of `[trunk]` and `[leg]`, 16 hex digits.
+    pub physics_hash: String,
+}
+
+impl RobotId {
+    /// What an artifact without a robot stamp was made for: the A1 (every artifact made
+    /// before stamps existed), matched by name only.
+    pub fn unstamped() -> Self {
+        RobotId {
+            name: "a1".into(),
+            physics_hash: String::new(),
+        }
+    }
+
+    /// Refuses `robot` for an artifact (`what`, e.g. the table's path) made for `self`,
+    /// naming both; an unstamped artifact's empty hash matches any hash of the same name.
+    pub fn check(&self, robot: &RobotConfig, what: &str) -> Result<(), String> {
+        let ours = robot.id();
+        let same_hash = self.physics_hash.is_empty() || self.physics_hash == ours.physics_hash;
+        if self.name == ours.name && same_hash {
+            return Ok(());
+        }
+        Err(format!(
+            "{what} was made for robot '{}' (physics {}), not for '{}' (physics {}); use the \
+             artifact of this robot, or --allow-robot-mismatch for an experiment",
+            self.name,
+            if self.physics_hash.is_empty() {
+                "unstamped"
+            } else {
+                &self.physics_hash
+            },
+            ours.name,
+            ours.physics_hash
+        ))
+    }
+}
+
+/// A validated [`SdkConfig`]: the motor index of each joint.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MotorOrder {
+    slot: LegMap<usize>,
+}
+
+impl MotorOrder {
+    pub fn new(sdk: &SdkConfig) -> Result<Self, ConfigError> {
+        let mut slot = LegMap::splat(usize::MAX);
+        for (k, name) in sdk.leg_order.iter().enumerate() {
+            let leg = Leg::ALL
+                .into_iter()
+                .find(|l| l.short_name() == name)
+                .ok_or_else(|| ConfigError::Invalid {
+                    name: format!("sdk.leg_order[{k}]"),
+                    message: format!("{name:?} is not a leg (FR, FL, RR or RL)"),
+                })?;
+            if slot[leg] != usize::MAX {
+                return Err(ConfigError::Invalid {
+                    name: "sdk.leg_order".into(),
+                    message: format!(
+                        "{:?} is not a permutation of FR, FL, RR, RL ({name} twice)",
+                        sdk.leg_order
+                    ),
+                });
+            }
+            slot[leg] = k;
+        }
+        Ok(MotorOrder { slot })
+    }
+
+    /// The order of Unitree's SDKs (FR, FL, RR, RL).
+    pub fn unitree() -> Self {
+        Self::new(&SdkConfig::default()).expect("the default order is a permutation")
+    }
+
+    /// Motor index of `joint` (0 abduction, 1 thigh, 2 calf) of `leg`.
+    pub fn index(&self, leg: Leg, joint: usize) -> usize {
+        3 * self.slot[leg] + joint
+    }
+
+    /// The leg at motor-triplet `k` (its position in `leg_order`).
+    pub fn slot(&self, leg: Leg) -> usize {
+        self.slot[leg]
+    }
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -58,9 +204,15 @@ pub struct LegConfig {
     pub calf_length_m: f64,
     pub foot_radius_m: f64,
     pub abduction_range_rad: [f64; 2],
+    /// The thigh range of the front legs (and of the rear ones unless `rear_thigh_range_rad`).
     pub thigh_range_rad: [f64; 2],
+    /// The rear legs' thigh range where it differs from the front's (the Go2).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rear_thigh_range_rad: Option<[f64; 2]>,
     pub calf_range_rad: [f64; 2],
-    pub torque_limit_nm: f64,
+    /// Motor torque limits (abduction, thigh, calf), N·m; one number means all three.
+    #[serde(deserialize_with = "per_joint")]
+    pub torque_limit_nm: [f64; 3],
     pub damping: [f64; 3],
     pub armature_kg_m2: [f64; 3],
     pub frictionloss_nm: [f64; 3],
@@ -68,6 +220,20 @@ pub struct LegConfig {
     pub hip_link: LinkConfig,
     pub thigh_link: LinkConfig,
     pub calf_link: LinkConfig,
+}
+
+/// A per-joint value written either as one number (every joint) or as [abduction, thigh, calf].
+fn per_joint<'de, D: serde::Deserializer<'de>>(d: D) -> Result<[f64; 3], D::Error> {
+    #[derive(Deserialize)]
+    #[serde(untagged)]
+    enum PerJoint {
+        All(f64),
+        Each([f64; 3]),
+    }
+    Ok(match PerJoint::deserialize(d)? {
+        PerJoint::All(v) => [v; 3],
+        PerJoint::Each(v) => v,
+    })
 }
 
 /// Which link of a leg.
@@ -138,18 +304,24 @@ impl RobotConfig {
             ("leg.thigh_length_m", l.thigh_length_m),
             ("leg.calf_length_m", l.calf_length_m),
             ("leg.foot_radius_m", l.foot_radius_m),
-            ("leg.torque_limit_nm", l.torque_limit_nm),
+            ("leg.torque_limit_nm[abduction]", l.torque_limit_nm[0]),
+            ("leg.torque_limit_nm[thigh]", l.torque_limit_nm[1]),
+            ("leg.torque_limit_nm[calf]", l.torque_limit_nm[2]),
             ("leg.hip_link.mass_kg", l.hip_link.mass_kg),
             ("leg.thigh_link.mass_kg", l.thigh_link.mass_kg),
             ("leg.calf_link.mass_kg", l.calf_link.mass_kg),
         ] {
             check_positive(name, v)?;
         }
-        for (name, r) in [
+        let mut named_ranges = vec![
             ("leg.abduction_range_rad", l.abduction_range_rad),
             ("leg.thigh_range_rad", l.thigh_range_rad),
             ("leg.calf_range_rad", l.calf_range_rad),
-        ] {
+        ];
+        if let Some(r) = l.rear_thigh_range_rad {
+            named_ranges.push(("leg.rear_thigh_range_rad", r));
+        }
+        for (name, r) in named_ranges {
             if r[0].partial_cmp(&r[1]) != Some(std::cmp::Ordering::Less) {
                 return Err(ConfigError::Invalid {
                     name: name.to_string(),
@@ -157,16 +329,63 @@ impl RobotConfig {
                 });
             }
         }
-        let ranges = [l.abduction_range_rad, l.thigh_range_rad, l.calf_range_rad];
-        for (j, name) in ["abduction", "thigh", "calf"].iter().enumerate() {
-            check_range(
-                &format!("leg.standing_pose_rad[{name}]"),
-                l.standing_pose_rad[j],
-                ranges[j][0],
-                ranges[j][1],
-            )?;
+        for leg in [Leg::FrontLeft, Leg::RearLeft] {
+            for (j, name) in ["abduction", "thigh", "calf"].iter().enumerate() {
+                let [lo, hi] = self.joint_range_rad(leg, j);
+                check_range(
+                    &format!("leg.standing_pose_rad[{name}]"),
+                    l.standing_pose_rad[j],
+                    lo,
+                    hi,
+                )?;
+            }
         }
+        MotorOrder::new(&self.sdk)?;
         Ok(())
+    }
+
+    /// Joint range [min, max] of joint `j` (0 abduction, 1 thigh, 2 calf) of `leg`, rad.
+    pub fn joint_range_rad(&self, leg: Leg, j: usize) -> [f64; 2] {
+        let l = &self.leg;
+        match j {
+            0 => l.abduction_range_rad,
+            1 if leg.front_sign() < 0.0 => l.rear_thigh_range_rad.unwrap_or(l.thigh_range_rad),
+            1 => l.thigh_range_rad,
+            _ => l.calf_range_rad,
+        }
+    }
+
+    /// The three joint ranges of `leg`, rad.
+    pub fn joint_ranges_rad(&self, leg: Leg) -> [[f64; 2]; 3] {
+        [0, 1, 2].map(|j| self.joint_range_rad(leg, j))
+    }
+
+    /// This robot's [`RobotId`].
+    pub fn id(&self) -> RobotId {
+        #[derive(Serialize)]
+        struct Physics<'a> {
+            trunk: &'a TrunkConfig,
+            leg: &'a LegConfig,
+        }
+        let text = toml::to_string(&Physics {
+            trunk: &self.trunk,
+            leg: &self.leg,
+        })
+        .expect("a robot's numbers serialise");
+        let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+        for b in text.bytes() {
+            h ^= u64::from(b);
+            h = h.wrapping_mul(0x0000_0100_0000_01b3);
+        }
+        RobotId {
+            name: self.name.clone(),
+            physics_hash: format!("{h:016x}"),
+        }
+    }
+
+    /// The SDK's motor numbering (validated with the file).
+    pub fn motor_order(&self) -> MotorOrder {
+        MotorOrder::new(&self.sdk).expect("validated with the robot file")
     }
 
     /// Total mass of the robot, kg.
@@ -261,6 +480,114 @@ mod tests {
         robot.leg.standing_pose_rad[2] = 0.5;
         let err = robot.validate().unwrap_err().to_string();
         assert!(err.contains("standing_pose_rad[calf]"), "{err}");
+    }
+
+    const GO2_TOML: &str = include_str!("../../../robots/go2.toml");
+    const GO1_TOML: &str = include_str!("../../../robots/go1.toml");
+
+    fn parse(text: &str) -> Result<RobotConfig, String> {
+        let r: RobotConfig = toml::from_str(text).map_err(|e| e.to_string())?;
+        r.validate().map_err(|e| e.to_string())?;
+        Ok(r)
+    }
+
+    #[test]
+    fn the_go2_and_go1_files_say_their_per_joint_limits_ranges_and_motor_order() {
+        let go2 = parse(GO2_TOML).unwrap();
+        assert_eq!(go2.leg.torque_limit_nm, [23.7, 23.7, 45.43]);
+        // Front and rear thighs differ on the Go2.
+        assert_eq!(go2.joint_range_rad(Leg::FrontLeft, 1), [-1.5708, 3.4907]);
+        assert_eq!(go2.joint_range_rad(Leg::RearRight, 1), [-0.5236, 4.5379]);
+        assert_eq!(go2.joint_range_rad(Leg::RearRight, 2), [-2.7227, -0.83776]);
+        // Menagerie's total ≈ 15.21 kg (6.921 + 4 × (0.678 + 1.152 + 0.241352)).
+        assert_relative_eq!(go2.total_mass_kg(), 15.206408, epsilon = 1e-9);
+        assert_eq!(go2.sdk.protocol, LowLevelProtocol::Go2Dds);
+        // Unitree's order: FR 0–2, FL 3–5, RR 6–8, RL 9–11.
+        let order = go2.motor_order();
+        assert_eq!(order.index(Leg::FrontRight, 0), 0);
+        assert_eq!(order.index(Leg::FrontLeft, 2), 5);
+        assert_eq!(order.index(Leg::RearLeft, 1), 10);
+        let go1 = parse(GO1_TOML).unwrap();
+        assert_eq!(go1.leg.torque_limit_nm, [23.7, 23.7, 35.55]);
+        assert_eq!(
+            go1.joint_range_rad(Leg::RearLeft, 1),
+            go1.leg.thigh_range_rad
+        );
+        // Three robots, three identities; an edited number changes the hash, not the name.
+        let a1 = RobotConfig::a1();
+        let ids = [a1.id(), go2.id(), go1.id()];
+        assert!(ids[0] != ids[1] && ids[1] != ids[2] && ids[0] != ids[2]);
+        let mut heavier = a1.clone();
+        heavier.trunk.mass_kg += 0.1;
+        assert_eq!(heavier.id().name, "a1");
+        assert_ne!(heavier.id().physics_hash, a1.id().physics_hash);
+        let e = a1.id().check(&heavier, "the trot table").unwrap_err();
+        assert!(
+            e.contains("the trot table") && e.contains(&a1.id().physics_hash),
+            "{e}"
+        );
+        // An unstamped artifact is the A1's, by name.
+        assert!(RobotId::unstamped().check(&heavier, "x").is_ok());
+        assert!(RobotId::unstamped()
+            .check(&go1, "x")
+            .unwrap_err()
+            .contains("'go1'"));
+    }
+
+    #[test]
+    fn a_robot_file_with_a_bad_limit_or_motor_order_is_refused_naming_the_key() {
+        // One number still means all three joints (files written before per-joint limits).
+        let one = A1_TOML.replace(
+            "torque_limit_nm = [33.5, 33.5, 33.5]",
+            "torque_limit_nm = 33.5",
+        );
+        assert_ne!(one, A1_TOML);
+        assert_eq!(parse(&one).unwrap(), RobotConfig::a1());
+        for (from, to, want) in [
+            (
+                "torque_limit_nm = [33.5, 33.5, 33.5]",
+                "torque_limit_nm = [33.5, 33.5]",
+                "torque_limit_nm",
+            ),
+            (
+                "torque_limit_nm = [33.5, 33.5, 33.5]",
+                "torque_limit_nm = [33.5, 0.0, 33.5]",
+                "leg.torque_limit_nm[thigh]",
+            ),
+            (
+                "torque_limit_nm = [33.5, 33.5, 33.5]",
+                "torque_limit_nm = [33.5, 33.5, -1.0]",
+                "leg.torque_limit_nm[calf]",
+            ),
+            (
+                "torque_limit_nm = [33.5, 33.5, 33.5]\n",
+                "",
+                "torque_limit_nm",
+            ),
+        ] {
+            let text = A1_TOML.replace(from, to);
+            assert_ne!(text, A1_TOML);
+            let e = parse(&text).unwrap_err();
+            assert!(e.contains(want), "{to}: {e}");
+        }
+        for (order, want) in [
+            (r#"["FR", "FL", "RR", "FR"]"#, "not a permutation"),
+            (r#"["FR", "FL", "RR", "XX"]"#, "sdk.leg_order[3]"),
+        ] {
+            let text = GO2_TOML.replace(
+                r#"leg_order = ["FR", "FL", "RR", "RL"]"#,
+                &format!("leg_order = {order}"),
+            );
+            let e = parse(&text).unwrap_err();
+            assert!(e.contains(want), "{order}: {e}");
+        }
+        // A rear thigh range that excludes the standing pose is named.
+        let text = GO2_TOML.replace(
+            "rear_thigh_range_rad = [-0.5236, 4.5379]",
+            "rear_thigh_range_rad = [1.0, 4.5379]",
+        );
+        let e = parse(&text).unwrap_err();
+        assert!(e.contains("standing_pose_rad[thigh]"), "{e}");
     }
 
     #[test]

@@ -165,6 +165,7 @@ pub fn run_hw(
 ) -> Result<HwReport, String> {
     opts.validate()?;
     let kin = LegKinematics::new(robot);
+    let order = robot.motor_order();
     let mut model = Simulation::new(robot, &Default::default()).map_err(|e| e.to_string())?;
     let mut safety = SafetyLayer::new(robot, opts.safety.clone()).map_err(|e| e.to_string())?;
     let mut link = match &opts.transport {
@@ -202,7 +203,7 @@ pub fn run_hw(
                     report.stale_states += 1;
                     return;
                 }
-                let sensed = SensedState::from_low_state(&s);
+                let sensed = SensedState::from_low_state(&s, &order);
                 if !sensed.is_finite() {
                     report.bad_datagrams += 1;
                     return;
@@ -313,7 +314,7 @@ pub fn run_hw(
                 report.first_watchdog_s = Some(now);
             }
         }
-        let bytes = low_cmd(&sent).encode().map_err(|e| e.to_string())?;
+        let bytes = low_cmd(&sent, &order).encode().map_err(|e| e.to_string())?;
         if let (Some(l), Transport::Udp { robot, .. }) = (&mut link, &opts.transport) {
             l.send(&bytes, *robot, now);
         }
@@ -342,7 +343,7 @@ pub fn run_hw(
     // Leaving: the motors keep the last command they got, so the last ones are damping.
     safety.estop();
     let (damp, _) = safety.filter(wall0.elapsed().as_secs_f64(), &cmd);
-    let bytes = low_cmd(&damp).encode().map_err(|e| e.to_string())?;
+    let bytes = low_cmd(&damp, &order).encode().map_err(|e| e.to_string())?;
     if let (Some(l), Transport::Udp { robot, .. }) = (&mut link, &opts.transport) {
         for _ in 0..5 {
             let now = wall0.elapsed().as_secs_f64();

@@ -10,8 +10,9 @@
 
 use crate::link::{Link, LinkStats};
 use eemp_core::hardware::a1_protocol::{LowCmd, LowState, MotorCmd, MotorState, MOTORS};
-use eemp_core::hardware::robot_io::{motor_index, motor_torque};
+use eemp_core::hardware::robot_io::motor_torque;
 use eemp_core::leg::{Leg, LegMap};
+use eemp_core::robot::MotorOrder;
 use eemp_core::robot::RobotConfig;
 use eemp_sim::closed_loop::FallLimits;
 use eemp_sim::walk::StartPose;
@@ -72,7 +73,12 @@ impl SimRobotReport {
 }
 
 /// A state datagram of the simulation's current state (after `prepare_kinematics`).
-fn low_state(sim: &Simulation, tau: &LegMap<Vector3<f64>>, tick: u32) -> LowState {
+fn low_state(
+    sim: &Simulation,
+    order: &MotorOrder,
+    tau: &LegMap<Vector3<f64>>,
+    tick: u32,
+) -> LowState {
     let imu = sim.imu();
     let s = sim.ground_truth_state();
     let q = imu.r_world_body.coords;
@@ -88,7 +94,7 @@ fn low_state(sim: &Simulation, tau: &LegMap<Vector3<f64>>, tick: u32) -> LowStat
     let forces = sim.foot_normal_forces_n();
     for leg in Leg::ALL {
         for j in 0..3 {
-            out.motors[motor_index(leg, j)] = MotorState {
+            out.motors[order.index(leg, j)] = MotorState {
                 mode: eemp_core::hardware::a1_protocol::MODE_SERVO,
                 q: s.joints[leg].q[j] as f32,
                 dq: s.joints[leg].qd[j] as f32,
@@ -98,7 +104,7 @@ fn low_state(sim: &Simulation, tau: &LegMap<Vector3<f64>>, tick: u32) -> LowStat
                 ..Default::default()
             };
         }
-        out.foot_force[leg.index()] = forces[leg].round().clamp(0.0, 32767.0) as i16;
+        out.foot_force[order.slot(leg)] = forces[leg].round().clamp(0.0, 32767.0) as i16;
     }
     out
 }
@@ -111,6 +117,7 @@ pub fn run_sim_robot(
     mut link: Link,
     stop: &AtomicBool,
 ) -> Result<SimRobotReport, String> {
+    let order = robot.motor_order();
     let mut sim = Simulation::new(robot, &Default::default()).map_err(|e| e.to_string())?;
     sim.reset(
         Vector3::new(0.0, 0.0, opts.start.trunk_height_m + 0.002),
@@ -164,10 +171,10 @@ pub fn run_sim_robot(
         let tau = LegMap::from_fn(|leg| {
             Vector3::from_fn(|j, _| match &motors {
                 Some(m) => motor_torque(
-                    &m[motor_index(leg, j)],
+                    &m[order.index(leg, j)],
                     state.joints[leg].q[j],
                     state.joints[leg].qd[j],
-                    robot.leg.torque_limit_nm,
+                    robot.leg.torque_limit_nm[j],
                 ),
                 None => 0.0,
             })
@@ -176,7 +183,7 @@ pub fn run_sim_robot(
         if report.steps.is_multiple_of(state_every) && !frozen {
             if let Some(to) = peer {
                 let tick = (sim.time_s() * 1e6).round() as u32;
-                let bytes = low_state(&sim, &tau, tick)
+                let bytes = low_state(&sim, &order, &tau, tick)
                     .encode()
                     .map_err(|e| e.to_string())?;
                 link.send(&bytes, to, now);

@@ -47,6 +47,7 @@ pub struct PolicyController {
 impl PolicyController {
     /// `timestep_s`: the physics step of the loop it will run in.
     pub fn new(policy: Policy, robot: &RobotConfig, timestep_s: f64) -> Result<Self, String> {
+        policy.check_robot(robot)?;
         let q0 = robot.standing_pose();
         let (agent, period_s, pd_gains, obs_dim) = match policy.config.task {
             TaskKind::ModelFree => {

@@ -18,6 +18,11 @@ pub struct Policy {
     pub normalizer: ObsNormalizer,
     /// The reference motion file's text (imitation policies carry the motion they follow).
     pub motion: Option<String>,
+    /// The robot it was trained on (metadata `robot`; `None`: a file from before stamps,
+    /// trained on the A1).
+    pub robot: Option<eemp_core::robot::RobotId>,
+    /// Let a controller run it on another robot (an experiment; not saved).
+    pub allow_robot_mismatch: bool,
 }
 
 /// Observation and action sizes of a config's task.
@@ -82,6 +87,8 @@ impl Policy {
             net,
             normalizer: ObsNormalizer::new(obs_dim),
             motion: None,
+            robot: None,
+            allow_robot_mismatch: false,
         })
     }
 
@@ -106,6 +113,12 @@ impl Policy {
         );
         if let Some(m) = &self.motion {
             f.metadata.insert("motion".into(), m.clone());
+        }
+        if let Some(r) = &self.robot {
+            f.metadata.insert(
+                "robot".into(),
+                toml::to_string(r).map_err(|e| e.to_string())?,
+            );
         }
         Ok(f)
     }
@@ -177,6 +190,12 @@ impl Policy {
         if task == TaskKind::Imitation {
             policy.motion = Some(f.meta(path, "motion")?.to_string());
         }
+        if let Some(text) = f.metadata.get("robot") {
+            policy.robot = Some(
+                toml::from_str(text)
+                    .map_err(|e| format!("{}: metadata 'robot': {e}", path.display()))?,
+            );
+        }
         if policy.normalizer.dim() != o {
             return Err(format!(
                 "{}: normaliser has {} dims, the task {o}",
@@ -208,6 +227,22 @@ impl Policy {
         self.normalizer.mean.resize(obs_dim, 0.0);
         self.normalizer.var.resize(obs_dim, 1.0);
         Ok(self)
+    }
+
+    /// The robot it was trained on (an unstamped file: the A1).
+    pub fn robot_id(&self) -> eemp_core::robot::RobotId {
+        self.robot
+            .clone()
+            .unwrap_or_else(eemp_core::robot::RobotId::unstamped)
+    }
+
+    /// Refuses to run on `robot` a policy trained on another, unless `allow_robot_mismatch`.
+    pub fn check_robot(&self, robot: &eemp_core::robot::RobotConfig) -> Result<(), String> {
+        if self.allow_robot_mismatch {
+            return Ok(());
+        }
+        self.robot_id()
+            .check(robot, &format!("the {} policy", self.config.task.name()))
     }
 
     /// The deterministic action (the Gaussian's mean) for one raw observation.

@@ -276,13 +276,20 @@ pub fn train(
     on_iteration: &mut dyn FnMut(&IterationLog),
 ) -> Result<Policy, String> {
     config.validate().map_err(|e| e.to_string())?;
+    let id = robot.id();
     match make_envs(config, robot, opts.threads)? {
-        AnyVecEnv::ModelFree(v) => Trainer::new(config, v, None, opts)?.run(opts, on_iteration),
-        AnyVecEnv::Imitation(v, m) => {
-            Trainer::new(config, v, Some(m), opts)?.run(opts, on_iteration)
-        }
-        AnyVecEnv::EempRl(v) => Trainer::new(config, v, None, opts)?.run(opts, on_iteration),
-        AnyVecEnv::CartPole(v) => Trainer::new(config, v, None, opts)?.run(opts, on_iteration),
+        AnyVecEnv::ModelFree(v) => Trainer::new(config, v, None, opts)?
+            .stamped(id)
+            .run(opts, on_iteration),
+        AnyVecEnv::Imitation(v, m) => Trainer::new(config, v, Some(m), opts)?
+            .stamped(id)
+            .run(opts, on_iteration),
+        AnyVecEnv::EempRl(v) => Trainer::new(config, v, None, opts)?
+            .stamped(id)
+            .run(opts, on_iteration),
+        AnyVecEnv::CartPole(v) => Trainer::new(config, v, None, opts)?
+            .stamped(id)
+            .run(opts, on_iteration),
     }
 }
 
@@ -397,6 +404,12 @@ impl<E: Env> Trainer<E> {
             }
         }
         Ok(t)
+    }
+
+    /// The policy records the robot it is trained on (also after a resume).
+    fn stamped(mut self, robot: eemp_core::robot::RobotId) -> Self {
+        self.policy.robot = Some(robot);
+        self
     }
 
     /// Fine-tuning ([`TrainConfig::init_policy`]): the networks, log-std and normaliser of a

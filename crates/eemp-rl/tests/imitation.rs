@@ -49,7 +49,7 @@ fn leg_ik_reaches_reachable_targets_within_1mm_and_stays_in_the_joint_ranges() {
     while tried < 2000 {
         let leg = Leg::ALL[rng.random_range(0..4)];
         let q = Vector3::from_fn(|j, _| {
-            let [lo, hi] = kin.joint_range(j);
+            let [lo, hi] = kin.joint_range(leg, j);
             rng.random_range(lo..hi)
         });
         let target = kin.foot_position_body(leg, &q);
@@ -64,7 +64,7 @@ fn leg_ik_reaches_reachable_targets_within_1mm_and_stays_in_the_joint_ranges() {
         let fk = kin.foot_position_body(leg, &qs);
         assert!((fk - target).norm() <= 1e-3);
         for j in 0..3 {
-            let [lo, hi] = kin.joint_range(j);
+            let [lo, hi] = kin.joint_range(leg, j);
             assert!(qs[j] >= lo - 1e-9 && qs[j] <= hi + 1e-9, "{qs:?}");
         }
     }
@@ -73,7 +73,7 @@ fn leg_ik_reaches_reachable_targets_within_1mm_and_stays_in_the_joint_ranges() {
     let (q, residual) = leg_ik(&kin, Leg::FrontLeft, &far, &q0[Leg::FrontLeft]);
     assert!(residual > 0.15 && residual < 0.25, "{residual} {q:?}");
     for j in 0..3 {
-        let [lo, hi] = kin.joint_range(j);
+        let [lo, hi] = kin.joint_range(Leg::FrontLeft, j);
         assert!(q[j] >= lo && q[j] <= hi);
     }
 }

@@ -59,7 +59,7 @@ pub struct Simulation {
     handles: Handles,
     nv: usize,
     mass_matrix: Vec<f64>,
-    torque_limit_nm: f64,
+    torque_limit_nm: [f64; 3],
     total_mass_kg: f64,
     foot_radius_m: f64,
 }
@@ -479,7 +479,7 @@ impl Simulation {
         self.total_mass_kg
     }
 
-    pub fn torque_limit_nm(&self) -> f64 {
+    pub fn torque_limit_nm(&self) -> [f64; 3] {
         self.torque_limit_nm
     }
 

@@ -2,7 +2,7 @@
 //! and the controllers read the same numbers.
 //!
 //! Modelling choices (beyond Menagerie's A1): torque-controlled `motor` actuators with the
-//! config's torque limit (`general` actuators with gain k under a motor-strength error); one capsule per thigh and calf and a box trunk as collision shapes;
+//! config's per-joint torque limits (`general` actuators with gain k under a motor-strength error); one capsule per thigh and calf and a box trunk as collision shapes;
 //! robot geoms collide with the floor only (no leg–leg contacts: the planner never crosses legs,
 //! and it saves collision checks); the floor has contact priority, so its friction is the one
 //! used by every foot (that is what makes `floor_friction` the knob for slippery ground);
@@ -80,14 +80,14 @@ pub fn robot_mjcf(robot: &RobotConfig, extras: &SceneExtras) -> String {
             fx * l.hip_offset_m[0],
             sy * l.hip_offset_m[1],
             inertial(&l.hip_link, leg, LinkKind::Hip),
-            joint("hip", "1 0 0", l.abduction_range_rad, 0),
+            joint("hip", "1 0 0", robot.joint_range_rad(leg, 0), 0),
             sy * l.abduction_to_thigh_m,
             inertial(&l.thigh_link, leg, LinkKind::Thigh),
-            joint("thigh", "0 1 0", l.thigh_range_rad, 1),
+            joint("thigh", "0 1 0", robot.joint_range_rad(leg, 1), 1),
             -(l.thigh_length_m - 0.01),
             -l.thigh_length_m,
             inertial(&l.calf_link, leg, LinkKind::Calf),
-            joint("calf", "0 1 0", l.calf_range_rad, 2),
+            joint("calf", "0 1 0", robot.joint_range_rad(leg, 2), 2),
             -(l.calf_length_m - l.foot_radius_m),
             l.foot_radius_m,
             -l.calf_length_m,
@@ -98,9 +98,9 @@ pub fn robot_mjcf(robot: &RobotConfig, extras: &SceneExtras) -> String {
     }
     let mut actuators = String::new();
     for leg in Leg::ALL {
-        for j in ["hip", "thigh", "calf"] {
+        for (k, j) in ["hip", "thigh", "calf"].into_iter().enumerate() {
             let n = leg.short_name();
-            let lim = l.torque_limit_nm;
+            let lim = l.torque_limit_nm[k];
             match extras.motor_strength_scale {
                 // A motor is a general actuator with gain 1; a weaker or stronger one has gain k
                 // (MuJoCo's actuator force is then k·ctrl, so the applied torques say so too).

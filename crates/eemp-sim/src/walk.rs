@@ -138,6 +138,8 @@ pub struct WalkSpec {
     pub seed: u64,
     /// What the controller sees: the simulator's state or the Kalman filter's estimate.
     pub state_source: StateSource,
+    /// Run a per-speed table made for another robot (an experiment; refused otherwise).
+    pub allow_robot_mismatch: bool,
     /// The ground (flat by default).
     pub terrain: Terrain,
     /// Mass added at the trunk's centre of mass, kg (the controllers keep the nominal model).
@@ -258,6 +260,7 @@ impl WalkSpec {
             floor_friction: None,
             seed: 0,
             state_source: StateSource::GroundTruth,
+            allow_robot_mismatch: false,
             terrain: Terrain::default(),
             payload_kg: 0.0,
             model_error: ModelError::default(),
@@ -459,6 +462,15 @@ pub fn eemp_controller(
     )?;
     let locomotion = LocomotionController::new(robot, spec.controller.clone())?;
     let params = match &spec.params_table {
+        Some(t) if !spec.allow_robot_mismatch => {
+            t.robot_id()
+                .check(robot, &format!("the {} table", t.gait))
+                .map_err(|message| ConfigError::Invalid {
+                    name: "params_table".into(),
+                    message,
+                })?;
+            ParamsSource::Table(t.clone())
+        }
         Some(t) => ParamsSource::Table(t.clone()),
         None => ParamsSource::Constant(spec.params),
     };

@@ -233,16 +233,19 @@ fn model_errors_change_the_simulated_robot_only_as_stated() {
         "only the trunk changed"
     );
     // Half the commanded torque, and the limit halves with it.
-    let limit = robot.leg.torque_limit_nm;
+    let [abduction_limit, _, limit] = robot.leg.torque_limit_nm;
     let mut tau = LegMap::splat(Vector3::new(4.0, -6.0, 2.0 * limit));
-    tau[Leg::RearLeft] = Vector3::new(-2.0 * limit, 1.0, 0.0);
+    tau[Leg::RearLeft] = Vector3::new(-2.0 * abduction_limit, 1.0, 0.0);
     sim.step_bare(&tau);
     let applied = sim.applied_torques();
     assert_eq!(
         applied[Leg::FrontRight],
         Vector3::new(2.0, -3.0, 0.5 * limit)
     );
-    assert_eq!(applied[Leg::RearLeft], Vector3::new(-0.5 * limit, 0.5, 0.0));
+    assert_eq!(
+        applied[Leg::RearLeft],
+        Vector3::new(-0.5 * abduction_limit, 0.5, 0.0)
+    );
     // No error: the generated model is the nominal one (same MJCF, same torques).
     let (mut same, mut scene) = (robot.clone(), SceneExtras::default());
     ModelError::default().apply(&mut same, &mut scene);
@@ -250,5 +253,60 @@ fn model_errors_change_the_simulated_robot_only_as_stated() {
     assert_eq!(
         eemp_sim::mjcf::robot_mjcf(&same, &scene),
         eemp_sim::mjcf::robot_mjcf(&robot, &SceneExtras::default())
+    );
+}
+
+fn robot_file(name: &str) -> RobotConfig {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../robots")
+        .join(format!("{name}.toml"));
+    RobotConfig::load(&path).unwrap()
+}
+
+#[test]
+fn the_go2_and_go1_models_carry_their_per_joint_limits_and_match_the_core_kinematics() {
+    for name in ["go2", "go1"] {
+        let robot = robot_file(name);
+        let xml = eemp_sim::mjcf::robot_mjcf(&robot, &SceneExtras::default());
+        let [_, _, knee] = robot.leg.torque_limit_nm;
+        assert!(
+            xml.contains(&format!(
+                r#"<motor name="FL_calf" joint="FL_calf_joint" ctrlrange="-{knee} {knee}"/>"#
+            )),
+            "{name}: knee limit {knee} not in the model"
+        );
+        assert!(
+            xml.contains(r#"<motor name="RR_hip" joint="RR_hip_joint" ctrlrange="-23.7 23.7"/>"#)
+        );
+        let [lo, hi] = robot.joint_range_rad(Leg::RearRight, 1);
+        assert!(
+            xml.contains(&format!(
+                r#"name="RR_thigh_joint" axis="0 1 0" range="{lo} {hi}""#
+            )),
+            "{name}: rear thigh range"
+        );
+        // Forward kinematics of the core against MuJoCo on this robot's model.
+        let kin = LegKinematics::new(&robot);
+        let mut sim = Simulation::new(&robot, &SceneExtras::default()).unwrap();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(12);
+        for _ in 0..50 {
+            let (p, r, _) = random_pose(&mut rng);
+            let q = robot
+                .standing_pose()
+                .map(|_, q| q + Vector3::from_fn(|_, _| rng.random_range(-0.3..0.3)));
+            set_pose(&mut sim, p, r, &q);
+            let feet = sim.foot_positions_world();
+            for leg in Leg::ALL {
+                let core = p + r * kin.foot_position_body(leg, &q[leg]);
+                assert!((core - feet[leg]).norm() < 1e-9, "{name} {leg:?}");
+            }
+        }
+        assert!((sim.total_mass_kg() - robot.total_mass_kg()).abs() < 1e-9);
+    }
+    // Front and rear thigh ranges differ on the Go2 only.
+    let go2 = robot_file("go2");
+    assert_ne!(
+        go2.joint_range_rad(Leg::FrontLeft, 1),
+        go2.joint_range_rad(Leg::RearLeft, 1)
     );
 }

@@ -96,6 +96,21 @@ pub struct Grid {
     /// seed. A setting like `progress_factor`, stored in `sweep.toml`.
     #[serde(skip_serializing_if = "SweepEstimator::is_ground_truth")]
     pub estimator: SweepEstimator,
+    /// The robot file every run simulates (`[grid] robot = "robots/go2.toml"`; none: the
+    /// shipped A1). A setting, stored in `sweep.toml`; the tables are stamped with its id and
+    /// named `<robot>_<gait>.toml`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub robot: Option<std::path::PathBuf>,
+}
+
+impl Grid {
+    /// The robot of the runs (validated when the sweep file was read).
+    pub fn robot_config(&self) -> Result<eemp_core::robot::RobotConfig, String> {
+        match &self.robot {
+            Some(p) => eemp_core::robot::RobotConfig::load(p).map_err(|e| e.to_string()),
+            None => Ok(eemp_core::robot::RobotConfig::a1()),
+        }
+    }
 }
 
 /// The state source of a sweep's runs (`[grid] estimator = "ground-truth" | "kf"`).
@@ -257,6 +272,9 @@ impl Grid {
                 self.progress_factor, other.progress_factor
             ));
         }
+        if self.robot != other.robot {
+            out.push(format!("robot: {:?} vs {:?}", self.robot, other.robot));
+        }
         out
     }
 }
@@ -322,8 +340,13 @@ impl SweepConfig {
                 ))
             }
         };
+        if let Some(r) = &g.robot {
+            eemp_core::robot::RobotConfig::load(r)
+                .map_err(|e| v.error("grid.robot", e.to_string()))?;
+        }
         let grid = Grid {
             estimator,
+            robot: g.robot.clone(),
             progress_factor: v.progress_factor(g.progress_factor.as_ref(), &gaits)?,
             gaits,
             speed_mps: v.axis("speed_mps", &g.speed_mps, table_i::SPEED_MPS, "m/s")?,
@@ -661,6 +684,8 @@ struct RawGrid {
     progress_factor: Option<toml::Value>,
     #[serde(default)]
     estimator: Option<String>,
+    #[serde(default)]
+    robot: Option<std::path::PathBuf>,
 }
 
 #[derive(Deserialize, Default)]

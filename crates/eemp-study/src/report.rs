@@ -221,8 +221,8 @@ pub fn base64(bytes: &[u8]) -> String {
 pub const TABLES_DIR: &str = "tables";
 
 /// The file name of a gait's table: `a1_<gait>.toml`.
-pub fn table_file_name(gait: Gait) -> String {
-    format!("a1_{gait}.toml")
+pub fn table_file_name(robot: &str, gait: Gait) -> String {
+    format!("{robot}_{gait}.toml")
 }
 
 /// What [`write_tables`] did.
@@ -249,6 +249,11 @@ pub fn write_tables(
 ) -> Result<WrittenTables, StudyError> {
     let grid_gaits = &grid.gaits;
     let sel = &study.selection;
+    let robot = grid.robot_config().map_err(|message| StudyError::Results {
+        path: sweep_dir.to_path_buf(),
+        message,
+    })?;
+    let table_file_name = |gait: Gait| table_file_name(&robot.name, gait);
     // Refuse before writing anything.
     for &gait in grid_gaits {
         let path = tables_dir.join(table_file_name(gait));
@@ -277,6 +282,10 @@ pub fn write_tables(
         };
         let table = table
             .and_then(|t| t.with_progress_factor(grid.progress_factor.get(g.gait)))
+            .map(|t| eemp_core::planner::params_table::ParamsTable {
+                robot: Some(robot.id()),
+                ..t
+            })
             .map_err(|e| StudyError::Results {
                 path: sweep_dir.to_path_buf(),
                 message: format!("the selected {} table is invalid: {e}", g.gait),

@@ -52,9 +52,14 @@ pub fn walk_spec(
 
 /// The runner `eemp sweep` uses: each run in MuJoCo, with the grid's progress factors and
 /// estimator.
+/// Runs on the grid's robot; a robot file that no longer loads fails every run, saying why.
 pub fn simulator(grid: &Grid) -> impl Fn(&RunSpec) -> RunOutcome + Sync {
     let (factors, estimator) = (grid.progress_factor, grid.estimator);
-    move |spec| simulate(spec, &factors, estimator)
+    let robot = grid.robot_config();
+    move |spec| match &robot {
+        Ok(robot) => simulate_on(robot, spec, &factors, estimator),
+        Err(e) => RunOutcome::failed(e.clone()),
+    }
 }
 
 /// Runs one grid point in MuJoCo.
@@ -64,7 +69,16 @@ pub fn simulate(
     estimator: SweepEstimator,
 ) -> RunOutcome {
     static A1: OnceLock<RobotConfig> = OnceLock::new();
-    let robot = A1.get_or_init(RobotConfig::a1);
+    simulate_on(A1.get_or_init(RobotConfig::a1), spec, factors, estimator)
+}
+
+/// Runs one grid point on `robot`.
+pub fn simulate_on(
+    robot: &RobotConfig,
+    spec: &RunSpec,
+    factors: &ProgressFactors,
+    estimator: SweepEstimator,
+) -> RunOutcome {
     let walk = walk_spec(spec, factors, estimator, robot);
     match run_walk(robot, &walk, |_| {}) {
         Ok(run) => outcome_of(&run, walk.metrics_start_s),

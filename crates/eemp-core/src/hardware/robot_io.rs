@@ -7,12 +7,8 @@ use super::safety::{JointCommand, MeasuredJoints, RobotCommand};
 use crate::body_state::LegJointState;
 use crate::estimator::ImuReading;
 use crate::leg::{Leg, LegMap};
+use crate::robot::MotorOrder;
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
-
-/// Motor index of a joint in a datagram (`quadruped.h`: FR 0–2, FL 3–5, RR 6–8, RL 9–11).
-pub const fn motor_index(leg: Leg, joint: usize) -> usize {
-    3 * leg.index() + joint
-}
 
 /// What a state datagram tells the controller.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -28,10 +24,12 @@ pub struct SensedState {
 }
 
 impl SensedState {
-    pub fn from_low_state(s: &LowState) -> Self {
+    /// `order`: the robot file's SDK motor numbering (`quadruped.h` on the A1: FR 0–2,
+    /// FL 3–5, RR 6–8, RL 9–11).
+    pub fn from_low_state(s: &LowState, order: &MotorOrder) -> Self {
         let q = s.imu.quaternion.map(|v| v as f64);
         let v3 = |a: [f32; 3]| Vector3::new(a[0] as f64, a[1] as f64, a[2] as f64);
-        let motor = |leg: Leg, j: usize| &s.motors[motor_index(leg, j)];
+        let motor = |leg: Leg, j: usize| &s.motors[order.index(leg, j)];
         SensedState {
             tick_s: s.tick as f64 * 1e-6,
             imu: ImuReading {
@@ -46,7 +44,7 @@ impl SensedState {
                 qd: Vector3::from_fn(|j, _| motor(leg, j).dq as f64),
             }),
             tau: LegMap::from_fn(|leg| Vector3::from_fn(|j, _| motor(leg, j).tau_est as f64)),
-            foot_force: LegMap::from_fn(|leg| s.foot_force[leg.index()]),
+            foot_force: LegMap::from_fn(|leg| s.foot_force[order.slot(leg)]),
         }
     }
 
@@ -74,12 +72,12 @@ impl SensedState {
 }
 
 /// The command datagram for the 12 joints (the other 8 motors idle).
-pub fn low_cmd(cmd: &RobotCommand) -> LowCmd {
+pub fn low_cmd(cmd: &RobotCommand, order: &MotorOrder) -> LowCmd {
     let mut out = LowCmd::default();
     for leg in Leg::ALL {
         for j in 0..3 {
             let c = cmd[leg][j];
-            out.motors[motor_index(leg, j)] = MotorCmd {
+            out.motors[order.index(leg, j)] = MotorCmd {
                 mode: MODE_SERVO,
                 q: if c.kp > 0.0 { c.q as f32 } else { POS_STOP },
                 dq: if c.kd > 0.0 { c.dq as f32 } else { VEL_STOP },
@@ -177,11 +175,12 @@ mod tests {
             kd: 1.0,
             tau: 0.5,
         };
-        let wire = low_cmd(&cmd).encode().unwrap();
+        let order = crate::robot::MotorOrder::unitree();
+        let wire = low_cmd(&cmd, &order).encode().unwrap();
         let back = LowCmd::decode(&wire).unwrap();
         for leg in Leg::ALL {
             for j in 0..3 {
-                let m = back.motors[motor_index(leg, j)];
+                let m = back.motors[order.index(leg, j)];
                 let c = cmd[leg][j];
                 // The torque law the motor applies equals the one asked for, to the wire's
                 // fixed-point resolution (1/256 N·m, 1/32 and 1/16 for the gains).

@@ -64,8 +64,10 @@ pub struct SafetyConfig {
     pub soft_start_kd: f64,
     /// Damping of the damping mode, N·m·s/rad.
     pub damping_kd: f64,
-    /// Torque limit, N·m (the motor's).
-    pub torque_limit_nm: f64,
+    /// A torque cap below the robot file's per-joint motor limits, N·m; none (the default):
+    /// the robot file's limits (`leg.torque_limit_nm`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub torque_limit_nm: Option<f64>,
     /// Margin kept inside the joint ranges, rad.
     pub joint_margin_rad: f64,
     /// Largest position and velocity gains sent, N·m/rad and N·m·s/rad.
@@ -83,7 +85,7 @@ impl Default for SafetyConfig {
             soft_start_kp: 40.0,
             soft_start_kd: 1.0,
             damping_kd: 3.0,
-            torque_limit_nm: 33.5,
+            torque_limit_nm: None,
             joint_margin_rad: 0.02,
             max_kp: 200.0,
             max_kd: 10.0,
@@ -99,7 +101,9 @@ impl SafetyConfig {
         check_range("safety.soft_start_kp", self.soft_start_kp, 0.0, self.max_kp)?;
         check_range("safety.soft_start_kd", self.soft_start_kd, 0.0, self.max_kd)?;
         check_range("safety.damping_kd", self.damping_kd, 0.0, 20.0)?;
-        check_range("safety.torque_limit_nm", self.torque_limit_nm, 0.0, 33.5)?;
+        if let Some(t) = self.torque_limit_nm {
+            check_range("safety.torque_limit_nm", t, 0.0, 200.0)?;
+        }
         check_range("safety.joint_margin_rad", self.joint_margin_rad, 0.0, 0.3)?;
         check_range("safety.max_kp", self.max_kp, 0.0, 1000.0)?;
         check_range("safety.max_kd", self.max_kd, 0.0, 100.0)
@@ -150,7 +154,9 @@ pub enum Damping {
 
 pub struct SafetyLayer {
     config: SafetyConfig,
-    ranges: [[f64; 2]; 3],
+    ranges: LegMap<[[f64; 2]; 3]>,
+    /// Per joint (abduction, thigh, calf), N·m: the robot's, under the config's cap.
+    torque_limits_nm: [f64; 3],
     start: Option<(f64, LegMap<Vector3<f64>>)>,
     last_state: Option<MeasuredJoints>,
     power_count: u32,
@@ -171,7 +177,10 @@ impl SafetyLayer {
         config.validate()?;
         let l = &robot.leg;
         Ok(SafetyLayer {
-            ranges: [l.abduction_range_rad, l.thigh_range_rad, l.calf_range_rad],
+            ranges: LegMap::from_fn(|leg| robot.joint_ranges_rad(leg)),
+            torque_limits_nm: l
+                .torque_limit_nm
+                .map(|t| config.torque_limit_nm.map_or(t, |cap| cap.min(t))),
             config,
             start: None,
             last_state: None,
@@ -261,7 +270,6 @@ impl SafetyLayer {
             log.push(Intervention::SoftStart { blend });
         }
         let mut out = *cmd;
-        let lim = c.torque_limit_nm;
         for leg in Leg::ALL {
             for j in 0..3 {
                 let o = &mut out[leg][j];
@@ -293,7 +301,8 @@ impl SafetyLayer {
                     });
                     (o.kp, o.kd) = (kp, kd);
                 }
-                let [lo, hi] = self.ranges[j];
+                let lim = self.torque_limits_nm[j];
+                let [lo, hi] = self.ranges[leg][j];
                 let (lo, hi) = (lo + c.joint_margin_rad, hi - c.joint_margin_rad);
                 if o.kp > 0.0 && !(lo..=hi).contains(&o.q) {
                     let sent = o.q.clamp(lo, hi);

@@ -74,11 +74,21 @@ pub struct ParamsTable {
     /// that uses the table should use this factor too.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub progress_factor: Option<f64>,
+    /// The robot the table was selected on (`None`: made before stamps, for the A1).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub robot: Option<crate::robot::RobotId>,
     #[serde(rename = "entry")]
     pub entries: Vec<TableEntry>,
 }
 
 impl ParamsTable {
+    /// The robot the table was made for (an unstamped table: the A1).
+    pub fn robot_id(&self) -> crate::robot::RobotId {
+        self.robot
+            .clone()
+            .unwrap_or_else(crate::robot::RobotId::unstamped)
+    }
+
     /// Sorts the entries by speed and checks them: at least one, distinct finite speeds within
     /// Table I, every parameter within Table I.
     pub fn new(
@@ -91,6 +101,7 @@ impl ParamsTable {
             gait,
             interpolation,
             progress_factor: None,
+            robot: None,
             entries,
         };
         table.validate()?;
@@ -99,11 +110,13 @@ impl ParamsTable {
 
     pub fn load(path: &std::path::Path) -> Result<Self, ConfigError> {
         let t: ParamsTable = crate::config_error::load_toml(path)?;
+        let robot = t.robot;
         let table = ParamsTable::new(t.gait, t.interpolation, t.entries);
         match t.progress_factor {
             Some(f) => table.and_then(|table| table.with_progress_factor(f)),
             None => table,
         }
+        .map(|table| ParamsTable { robot, ..table })
         .map_err(|e| ConfigError::Invalid {
             name: path.display().to_string(),
             message: e.to_string(),

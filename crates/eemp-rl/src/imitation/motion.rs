@@ -274,7 +274,7 @@ impl ReferenceMotion {
         for (k, f) in self.frames.iter().enumerate() {
             for leg in Leg::ALL {
                 for j in 0..3 {
-                    let [lo, hi] = kin.joint_range(j);
+                    let [lo, hi] = kin.joint_range(leg, j);
                     let q = f.q[leg][j];
                     if q < lo - 1e-6 || q > hi + 1e-6 {
                         return Err(MotionError::Invalid {

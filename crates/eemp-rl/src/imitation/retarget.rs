@@ -223,7 +223,7 @@ pub fn leg_ik(
     }
     let clamp = |q: Vector3<f64>| {
         Vector3::from_fn(|j, _| {
-            let [lo, hi] = kin.joint_range(j);
+            let [lo, hi] = kin.joint_range(leg, j);
             q[j].clamp(lo, hi)
         })
     };
@@ -249,7 +249,7 @@ pub fn leg_ik(
                 * e;
             let mut frozen = false;
             for k in 0..3 {
-                let [lo, hi] = kin.joint_range(k);
+                let [lo, hi] = kin.joint_range(leg, k);
                 let pushing_out = (q[k] <= lo && dq[k] < 0.0) || (q[k] >= hi && dq[k] > 0.0);
                 if pushing_out && j.column(k).norm() > 0.0 {
                     j.column_mut(k).fill(0.0);

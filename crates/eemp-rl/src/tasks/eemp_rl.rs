@@ -1102,11 +1102,25 @@ impl Env for EempRlEnv {
 /// (tests, baselines).
 pub trait ParamsPolicy {
     fn act(&mut self, obs: &[f32]) -> Option<Vec<f32>>;
+    /// Refuses a robot the policy was not trained on.
+    fn check_robot(&self, _robot: &RobotConfig) -> Result<(), String> {
+        Ok(())
+    }
+    /// Whether the caller allowed another robot (an experiment), for the table too.
+    fn allow_robot_mismatch(&self) -> bool {
+        false
+    }
 }
 
 impl ParamsPolicy for crate::policy::Policy {
     fn act(&mut self, obs: &[f32]) -> Option<Vec<f32>> {
         crate::policy::Policy::act(self, obs).ok()
+    }
+    fn check_robot(&self, robot: &RobotConfig) -> Result<(), String> {
+        crate::policy::Policy::check_robot(self, robot)
+    }
+    fn allow_robot_mismatch(&self) -> bool {
+        self.allow_robot_mismatch
     }
 }
 
@@ -1143,7 +1157,15 @@ pub struct EempRlController<P: ParamsPolicy> {
 impl<P: ParamsPolicy> EempRlController<P> {
     pub fn new(robot: &RobotConfig, config: EempRlConfig, policy: P) -> Result<Self, String> {
         config.validate().map_err(|e| e.to_string())?;
+        policy.check_robot(robot)?;
         let source = config.initial_params_source();
+        if let (ParamsSource::Residual { table, .. }, false) =
+            (&source, policy.allow_robot_mismatch())
+        {
+            table
+                .robot_id()
+                .check(robot, &format!("EEMP-RL's {} table", table.gait))?;
+        }
         let mut eemp = eemp_controller(robot, &walk_spec(&config, source.at_speed(0.0)))
             .map_err(|e| e.to_string())?;
         eemp.params = source;

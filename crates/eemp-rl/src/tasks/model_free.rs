@@ -662,12 +662,12 @@ pub fn torques(tau: &[f64; 12]) -> f64 {
     tau.iter().map(|t| t * t).sum()
 }
 
-/// Σ distance beyond 90 % of each joint's range, rad.
-pub fn joint_limits(q: &[f64; 12], ranges: &[[f64; 2]; 3]) -> f64 {
+/// Σ distance beyond 90 % of each joint's range, rad (`ranges`: per leg, in `q`'s order).
+pub fn joint_limits(q: &[f64; 12], ranges: &[[[f64; 2]; 3]; 4]) -> f64 {
     q.iter()
         .enumerate()
         .map(|(i, &x)| {
-            let [lo, hi] = ranges[i % 3];
+            let [lo, hi] = ranges[i / 3][i % 3];
             let (mid, half) = ((lo + hi) / 2.0, (hi - lo) / 2.0 * 0.9);
             (x - (mid + half)).max(0.0) + ((mid - half) - x).max(0.0)
         })
@@ -789,7 +789,7 @@ pub struct ModelFreeEnv {
     config: ModelFreeConfig,
     kin: LegKinematics,
     q0: LegMap<Vector3<f64>>,
-    joint_ranges: [[f64; 2]; 3],
+    joint_ranges: [[[f64; 2]; 3]; 4],
     foot_radius_m: f64,
     loop_: ClosedLoop,
     pd: JointPd,
@@ -833,7 +833,7 @@ impl ModelFreeEnv {
         let kin = LegKinematics::new(robot);
         let substeps = (config.policy_period_s / sim.timestep_s()).round() as usize;
         Ok(ModelFreeEnv {
-            joint_ranges: [0, 1, 2].map(|j| kin.joint_range(j)),
+            joint_ranges: Leg::ALL.map(|leg| robot.joint_ranges_rad(leg)),
             kin,
             foot_radius_m: robot.leg.foot_radius_m,
             q0,

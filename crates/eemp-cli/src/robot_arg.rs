@@ -1,0 +1,46 @@
+//! `--robot FILE` and `--allow-robot-mismatch`, shared by every command that runs a robot.
+
+use eemp_core::robot::RobotConfig;
+use std::path::PathBuf;
+
+#[derive(clap::Args, Clone, Debug, Default)]
+pub struct RobotArgs {
+    /// Robot description: robots/a1.toml (the default, compiled in), robots/go2.toml,
+    /// robots/go1.toml, or your own file.
+    #[arg(long)]
+    pub robot: Option<PathBuf>,
+    /// Run per-speed tables and policies made for another robot (an experiment: refused
+    /// otherwise; said in summary.json).
+    #[arg(long)]
+    pub allow_robot_mismatch: bool,
+}
+
+impl RobotArgs {
+    /// The robot file, loaded and validated (the A1 without `--robot`).
+    pub fn load(&self) -> Result<RobotConfig, String> {
+        load_robot(self.robot.as_deref())
+    }
+}
+
+/// `path`'s robot, or the shipped A1.
+pub fn load_robot(path: Option<&std::path::Path>) -> Result<RobotConfig, String> {
+    match path {
+        Some(p) => RobotConfig::load(p).map_err(|e| e.to_string()),
+        None => Ok(RobotConfig::a1()),
+    }
+}
+
+/// What summary.json says about the robot a run used.
+pub fn robot_json(robot: &RobotConfig, allow_mismatch: bool) -> serde_json::Value {
+    let id = robot.id();
+    serde_json::json!({
+        "name": id.name,
+        "physics_hash": id.physics_hash,
+        "allow_robot_mismatch": allow_mismatch,
+    })
+}
+
+/// Where a robot's per-speed table of `gait` is shipped: `tables/<robot>_<gait>.toml`.
+pub fn shipped_table_path(robot: &RobotConfig, gait: eemp_core::planner::Gait) -> PathBuf {
+    PathBuf::from(format!("tables/{}_{gait}.toml", robot.name))
+}
