@@ -180,6 +180,8 @@ fn the_omni_and_energy_aware_fine_tunes_walk_5_s_at_0_5_m_per_s_on_the_filter() 
     for (file, energy) in [
         ("policies/a1_model_free_omni.safetensors", false),
         ("policies/a1_model_free_energy.safetensors", true),
+        ("policies/a1_model_free_clock.safetensors", false),
+        ("policies/a1_model_free_clock_energy.safetensors", true),
     ] {
         let policy = Policy::load(&repo_file(file), Some(TaskKind::ModelFree)).unwrap();
         assert_eq!(policy.config.estimator, eemp_rl::config::TrainEstimator::Kf);
@@ -200,5 +202,27 @@ fn the_omni_and_energy_aware_fine_tunes_walk_5_s_at_0_5_m_per_s_on_the_filter() 
         // They track worse than the baseline (reports/baselines): 0.1 m/s RMSE on the filter.
         assert_walked(&run, 0.15, 0.9);
         assert_eq!(c.invalid_steps, 0);
+    }
+}
+
+#[test]
+fn the_gait_clock_fine_tunes_carry_their_clock_and_follow_the_trot_schedule() {
+    // The clock (2 Hz) is in the observation and the controller runs it; walking at 0.5 m/s the
+    // diagonal pairs share their contact state most of the time (the schedule is a trot).
+    let robot = RobotConfig::a1();
+    for file in [
+        "policies/a1_model_free_clock.safetensors",
+        "policies/a1_model_free_clock_energy.safetensors",
+    ] {
+        let policy = Policy::load(&repo_file(file), Some(TaskKind::ModelFree)).unwrap();
+        assert_eq!(policy.config.model_free.extra_obs.gait_clock_hz, 2.0, "{file}");
+        assert!(policy.config.model_free.rewards.gait_schedule > 0.0, "{file}");
+        let mut c = PolicyController::new(policy, &robot, robot.simulation.timestep_s).unwrap();
+        let start = StartPose::from_joints(&robot, c.default_pose());
+        let spec = kf_walk_spec(&robot, 0.5, 5.0);
+        let run = run_walk_with(&robot, &spec, &start, &mut c, |_| {}).unwrap();
+        assert_walked(&run, 0.15, 0.9);
+        let together = run.gait.as_ref().expect("measured").diagonal_pairs_together;
+        assert!(together > 0.65, "{file}: diagonal pairs together {together}");
     }
 }
