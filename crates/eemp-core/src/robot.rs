@@ -492,6 +492,8 @@ mod tests {
     }
 
     #[test]
+    // Menagerie's rounded numbers (−1.5708, −0.5236), compared as written in the file.
+    #[allow(clippy::approx_constant)]
     fn the_go2_and_go1_files_say_their_per_joint_limits_ranges_and_motor_order() {
         let go2 = parse(GO2_TOML).unwrap();
         assert_eq!(go2.leg.torque_limit_nm, [23.7, 23.7, 45.43]);

@@ -115,7 +115,10 @@ pub fn build(
     } else {
         None
     };
-    let v = make_envs_with(&c, &robot, threads, m).map_err(value_error)?;
+    let mut v = make_envs_with(&c, &robot, threads, m).map_err(value_error)?;
+    // The trainer's stagger of first episodes is not gymnasium's contract: every episode a
+    // user starts runs its full length.
+    with_env!(&mut v, e => e.set_staggered_start(false, c.seed));
     Ok((v, c))
 }
 

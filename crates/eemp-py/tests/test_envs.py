@@ -136,8 +136,19 @@ def test_final_obs_and_truncation_in_vector_env(tmp_path):
                 assert not np.array_equal(info["final_obs"][i], obs[i]), "obs is the new episode's first"
             else:
                 assert not info["final_obs"][i].any(), "rows of running episodes are zero"
-    # 25-step episodes (the first ones start at a random step, as in training).
-    assert (ends >= 1).all() and (ends <= 2).all()
+    # 25-step episodes, the first one full-length too (no training stagger): ends at 25 and 50.
+    assert (ends == 2).all(), ends
+
+
+def test_the_first_episode_of_a_fresh_env_runs_its_full_length():
+    env = gym.make("A1ModelFree-v0")
+    env.reset(seed=0)
+    zero = np.zeros(12, np.float32)
+    for t in range(1, 1001):
+        _, _, term, trunc, _ = env.step(zero)
+        assert not term, f"standing still fell at step {t}"
+        assert trunc == (t == 1000), f"truncated at step {t} of a 1000-step (20 s) episode"
+
 
 
 def test_two_python_threads_on_one_vector_env_do_not_deadlock():

@@ -22,7 +22,7 @@ use std::path::Path;
 enum Agent {
     ModelFree {
         config: Box<ModelFreeConfig>,
-        kin: LegKinematics,
+        kin: Box<LegKinematics>,
         memory: PolicyMemory,
     },
     Imitation {
@@ -54,7 +54,7 @@ impl PolicyController {
                 let config = policy.config.model_free.clone();
                 (
                     Agent::ModelFree {
-                        kin: LegKinematics::new(robot),
+                        kin: Box::new(LegKinematics::new(robot)),
                         memory: PolicyMemory::for_config(&config),
                         config: Box::new(config.clone()),
                     },

@@ -45,6 +45,10 @@ pub trait Env: Send {
     /// Forgets earlier episodes: the next `reset` starts as the first one after construction
     /// does (tasks that stagger their first episodes start staggered again).
     fn restart(&mut self) {}
+    /// Whether first episodes start at a random step (the trainer's stagger, so truncations
+    /// spread out; on by default). A gymnasium environment turns it off: `reset(seed)` then
+    /// starts a full-length episode.
+    fn set_staggered_start(&mut self, _on: bool) {}
     /// Whether the last step ended in a fall (for logs).
     fn fell(&self) -> bool {
         false
@@ -218,6 +222,16 @@ impl<E: Env> VecEnv<E> {
 
     pub fn env_states(&self) -> Vec<serde_json::Value> {
         self.slots.iter().map(|s| s.env.save_state()).collect()
+    }
+
+    /// Turns the first episodes' stagger on or off ([`Env::set_staggered_start`]) and starts
+    /// again as `new(.., seed, ..)` would have with that setting.
+    pub fn set_staggered_start(&mut self, on: bool, seed: u64) {
+        for s in self.slots.iter_mut() {
+            s.env.set_staggered_start(on);
+        }
+        let seeds: Vec<u64> = (0..self.slots.len()).map(|i| env_seed(seed, i)).collect();
+        self.reseed(&seeds).expect("one seed per environment");
     }
 
     /// Gives environment `i` a fresh RNG seeded `seeds[i]` and starts new episodes in all of

@@ -215,14 +215,23 @@ fn the_gait_clock_fine_tunes_carry_their_clock_and_follow_the_trot_schedule() {
         "policies/a1_model_free_clock_energy.safetensors",
     ] {
         let policy = Policy::load(&repo_file(file), Some(TaskKind::ModelFree)).unwrap();
-        assert_eq!(policy.config.model_free.extra_obs.gait_clock_hz, 2.0, "{file}");
-        assert!(policy.config.model_free.rewards.gait_schedule > 0.0, "{file}");
+        assert_eq!(
+            policy.config.model_free.extra_obs.gait_clock_hz, 2.0,
+            "{file}"
+        );
+        assert!(
+            policy.config.model_free.rewards.gait_schedule > 0.0,
+            "{file}"
+        );
         let mut c = PolicyController::new(policy, &robot, robot.simulation.timestep_s).unwrap();
         let start = StartPose::from_joints(&robot, c.default_pose());
         let spec = kf_walk_spec(&robot, 0.5, 5.0);
         let run = run_walk_with(&robot, &spec, &start, &mut c, |_| {}).unwrap();
         assert_walked(&run, 0.15, 0.9);
         let together = run.gait.as_ref().expect("measured").diagonal_pairs_together;
-        assert!(together > 0.65, "{file}: diagonal pairs together {together}");
+        assert!(
+            together > 0.65,
+            "{file}: diagonal pairs together {together}"
+        );
     }
 }

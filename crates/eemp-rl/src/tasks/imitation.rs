@@ -417,6 +417,8 @@ pub struct ImitationEnv {
     max_steps: usize,
     substeps: usize,
     first_episode: bool,
+    /// Stagger first episodes (training); off for gymnasium.
+    staggered_start: bool,
     /// Where the command would have taken the root (world xy) and the heading it walks in.
     p_ref_xy: Vector2<f64>,
     heading: f64,
@@ -458,6 +460,7 @@ impl ImitationEnv {
             max_steps,
             substeps,
             first_episode: true,
+            staggered_start: true,
             p_ref_xy: Vector2::zeros(),
             heading: 0.0,
             fell: false,
@@ -590,7 +593,7 @@ impl Env for ImitationEnv {
         let state = self.loop_.sim().ground_truth_state();
         self.memory.policy.start(&state, &self.agent.q0);
         self.pd.targets = state.joints.map(|_, j| j.q);
-        self.steps = if self.first_episode {
+        self.steps = if self.first_episode && self.staggered_start {
             rng.random_range(0..self.max_steps)
         } else {
             0
@@ -677,6 +680,9 @@ impl Env for ImitationEnv {
 
     fn restart(&mut self) {
         self.first_episode = true;
+    }
+    fn set_staggered_start(&mut self, on: bool) {
+        self.staggered_start = on;
     }
     fn fell(&self) -> bool {
         self.fell

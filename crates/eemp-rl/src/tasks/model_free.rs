@@ -799,6 +799,8 @@ pub struct ModelFreeEnv {
     max_steps: usize,
     substeps: usize,
     first_episode: bool,
+    /// Stagger first episodes (training); off for gymnasium.
+    staggered_start: bool,
     air_time: [f64; 4],
     last_contact: [bool; 4],
     qd_prev: [f64; 12],
@@ -849,6 +851,7 @@ impl ModelFreeEnv {
             max_steps: (config.episode_s / config.policy_period_s).round() as usize,
             substeps,
             first_episode: true,
+            staggered_start: true,
             air_time: [0.0; 4],
             last_contact: [true; 4],
             qd_prev: [0.0; 12],
@@ -995,7 +998,7 @@ impl Env for ModelFreeEnv {
         self.memory.start(&state, &self.q0);
         self.pd.targets = self.q0;
         // The first episode of each env starts at a random time, so truncations spread out.
-        self.steps = if self.first_episode {
+        self.steps = if self.first_episode && self.staggered_start {
             rng.random_range(0..self.max_steps)
         } else {
             0
@@ -1107,6 +1110,9 @@ impl Env for ModelFreeEnv {
 
     fn restart(&mut self) {
         self.first_episode = true;
+    }
+    fn set_staggered_start(&mut self, on: bool) {
+        self.staggered_start = on;
     }
     fn fell(&self) -> bool {
         self.fell
