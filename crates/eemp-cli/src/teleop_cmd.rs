@@ -320,7 +320,7 @@ pub fn run(args: &TeleopArgs) -> Result<(), String> {
     println!("{}", serde_json::to_string(&summary).expect("serialises"));
     if !args.headless {
         eprintln!(
-            "note: no live viewer window in this build (see the README); the figure is {}",
+            "note: no live viewer window in this build (see docs/teleop-and-video.md); the figure is {}",
             args.out.join("teleop.png").display()
         );
     }
