@@ -96,6 +96,14 @@ fn flat(m: &LegMap<Vector3<f64>>) -> Vec<f64> {
         .collect()
 }
 
+/// A robot file (`robot=` in Python), or the shipped A1.
+fn load_robot(path: Option<&std::path::Path>) -> PyResult<RobotConfig> {
+    match path {
+        Some(p) => RobotConfig::load(p).map_err(value_error),
+        None => Ok(RobotConfig::a1()),
+    }
+}
+
 fn walk_spec(
     gait: &str,
     params: Option<PathBuf>,
@@ -142,9 +150,14 @@ pub struct PyEempController {
 #[pymethods]
 impl PyEempController {
     #[new]
-    #[pyo3(signature = (gait = "trot", params = None, params_table = None))]
-    fn new(gait: &str, params: Option<PathBuf>, params_table: Option<PathBuf>) -> PyResult<Self> {
-        let robot = RobotConfig::a1();
+    #[pyo3(signature = (gait = "trot", params = None, params_table = None, robot = None))]
+    fn new(
+        gait: &str,
+        params: Option<PathBuf>,
+        params_table: Option<PathBuf>,
+        robot: Option<PathBuf>,
+    ) -> PyResult<Self> {
+        let robot = load_robot(robot.as_deref())?;
         let spec = walk_spec(gait, params, params_table, VelocityCommand::default(), 1.0)?;
         spec.validate().map_err(value_error)?;
         let controller = eemp_controller(&robot, &spec).map_err(value_error)?;
@@ -292,7 +305,7 @@ impl PyA1Sim {
 /// its summary as JSON text (the Python side makes it a dict).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (gait = "trot", speed = 0.3, duration_s = 20.0, seed = 0, lateral = 0.0, yaw_rate = 0.0, params = None, params_table = None, estimator = "ground-truth"))]
+#[pyo3(signature = (gait = "trot", speed = 0.3, duration_s = 20.0, seed = 0, lateral = 0.0, yaw_rate = 0.0, params = None, params_table = None, estimator = "ground-truth", robot = None))]
 pub fn walk_json(
     py: Python<'_>,
     gait: &str,
@@ -304,8 +317,9 @@ pub fn walk_json(
     params: Option<PathBuf>,
     params_table: Option<PathBuf>,
     estimator: &str,
+    robot: Option<PathBuf>,
 ) -> PyResult<String> {
-    let robot = RobotConfig::a1();
+    let robot = load_robot(robot.as_deref())?;
     if !(duration_s.is_finite() && duration_s > 0.0 && duration_s <= 3600.0) {
         return Err(value_error(format!(
             "duration_s {duration_s} is out of range: allowed (0, 3600]"

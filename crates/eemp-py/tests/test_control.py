@@ -27,3 +27,21 @@ def test_walk_returns_the_summary_metrics():
     assert s["distance_m"] > 0.5 and s["steps_total"] > 10
     again = eemp.walk(gait="trot", speed=0.4, duration_s=4.0)
     assert {**again, "realtime_factor": None} == {**s, "realtime_factor": None}, "same seed, same walk"
+
+
+def test_walk_takes_a_robot_file_and_refuses_another_robots_table():
+    import pathlib
+
+    import pytest
+
+    root = pathlib.Path(__file__).resolve().parents[3]
+    go1, a1_table = root / "robots" / "go1.toml", root / "tables" / "a1_trot.toml"
+    s = eemp.walk(gait="trot", speed=0.3, duration_s=3.0, robot=str(go1),
+                  params_table=str(root / "tables" / "go1_trot.toml"))
+    assert s["fell"] is False and s["distance_m"] > 0.3
+    a1 = eemp.walk(gait="trot", speed=0.3, duration_s=3.0)
+    assert s["cot"] != a1["cot"], "another robot, another walk"
+    with pytest.raises(ValueError, match="'go1'"):
+        eemp.walk(duration_s=1.0, robot=str(go1), params_table=str(a1_table))
+    with pytest.raises(ValueError, match="'go1'"):
+        eemp.EempController(gait="trot", params_table=str(a1_table), robot=str(go1))
