@@ -57,6 +57,9 @@ pub struct WalkArgs {
     /// (`false`: touchdown fixed at lift-off).
     #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
     pub retarget_swing: bool,
+    /// Take the first step when a speed is commanded, not when a foot leaves its ellipse.
+    #[arg(long)]
+    pub first_step_on_command: bool,
     /// Show the MPC the swings the planner will start within its horizon (`false`: only the
     /// running ones, as in the paper).
     #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
@@ -236,6 +239,7 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
         max_accel_mps2: args.max_accel,
         preview_swings: args.preview_swings,
         free_pairing: free_pairing(args),
+        first_step_on_command: args.first_step_on_command,
     };
     planner.validate().map_err(|e| e.to_string())?;
     let command = VelocityCommand {
@@ -509,6 +513,7 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
         "params_table": args.params_table.as_ref().map(|p| p.display().to_string()),
         "progress_factor": spec.planner.progress_factor,
         "retarget_swing": args.retarget_swing,
+        "first_step_on_command": args.first_step_on_command,
         "max_accel_mps2": args.max_accel,
         "preview_swings": args.preview_swings,
         // What the free gait's planner used (EEMP-RL keeps its training's, in the policy file).

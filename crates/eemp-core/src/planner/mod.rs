@@ -63,6 +63,11 @@ pub struct PlannerConfig {
     /// When the free gait swings a leg's diagonal partner with it (see [`FreePairing`]); the
     /// trot and the walk ignore it.
     pub free_pairing: FreePairing,
+    /// Take the first step as soon as a horizontal speed is commanded, instead of waiting for
+    /// a foot to leave its ellipse (every ellipse value is raised by 1 until the first swing):
+    /// with a wide ellipse the trunk otherwise runs up to r_x ahead of its feet before the
+    /// first lift-off. Off by default (the shipped tables and reports were made without it).
+    pub first_step_on_command: bool,
 }
 
 impl Default for PlannerConfig {
@@ -74,6 +79,7 @@ impl Default for PlannerConfig {
             retarget_swing: true,
             preview_swings: true,
             free_pairing: FreePairing::default(),
+            first_step_on_command: false,
         }
     }
 }
@@ -236,7 +242,10 @@ impl EemPlanner {
             0.0
         };
 
-        let legs = self.next_legs(state, feet_world, params, &stance);
+        let kick = self.config.first_step_on_command
+            && self.previous_legs.is_empty()
+            && v_cmd.norm() >= 0.01;
+        let legs = self.next_legs(state, feet_world, params, &stance, kick);
         if !legs.is_empty() {
             for (leg, swing) in self.start_swing(t, state, feet_world, &legs, params, ground_z) {
                 self.swings[leg] = Some(swing);
@@ -366,11 +375,16 @@ impl EemPlanner {
         feet_world: &LegMap<Vector3<f64>>,
         params: &PlannerParams,
         stance: &LegMap<bool>,
+        first_step_now: bool,
     ) -> Vec<Leg> {
         if stance.0.iter().any(|s| !s) {
             return Vec::new();
         }
-        let values = self.ellipse_values(state, feet_world, params);
+        let mut values = self.ellipse_values(state, feet_world, params);
+        if first_step_now {
+            // Every foot "outside", in the order of how far out it is.
+            values = values.map(|_, v| v + 1.0);
+        }
         self.choose_swing(
             &values,
             &self.previous_legs,

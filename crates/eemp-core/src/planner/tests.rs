@@ -243,3 +243,43 @@ fn preview_shows_the_mpc_a_swing_that_starts_later_in_the_horizon() {
         assert!((plan.feet_horizon_world[2][leg].x - expected_x).abs() < 1e-9);
     }
 }
+
+#[test]
+fn the_first_step_on_command_starts_one_trot_pair_at_once_then_the_ellipses_rule() {
+    let kin = LegKinematics::new(&RobotConfig::a1());
+    // Feet 3 cm behind their hips: inside r_x = 7 cm.
+    let (state, feet) = standing(&kin, 0.03);
+    let params = PlannerParams::default();
+    let go = VelocityCommand {
+        vx_mps: 0.3,
+        ..Default::default()
+    };
+    let mut off = planner(Gait::Trot);
+    assert_eq!(
+        off.plan(0.0, &state, &feet, &go, &params).stance,
+        LegMap::splat(true)
+    );
+    let mut on = EemPlanner::new(
+        PlannerConfig {
+            gait: Gait::Trot,
+            first_step_on_command: true,
+            ..Default::default()
+        },
+        kin.clone(),
+        0.02,
+        10,
+        0.025,
+    )
+    .unwrap();
+    // Standing still: no step, whatever the flag.
+    let still = on.plan(0.0, &state, &feet, &VelocityCommand::default(), &params);
+    assert_eq!(still.stance, LegMap::splat(true));
+    // Commanded: a diagonal pair lifts now.
+    let plan = on.plan(0.001, &state, &feet, &go, &params);
+    let swinging: Vec<Leg> = Leg::ALL.into_iter().filter(|l| !plan.stance[*l]).collect();
+    assert_eq!(swinging.len(), 2, "{swinging:?}");
+    assert_eq!(swinging[0].diagonal(), swinging[1]);
+    // After that swing, the ellipses decide again: feet inside, no new swing.
+    let after = on.plan(1.0, &state, &feet, &go, &params);
+    assert_eq!(after.stance, LegMap::splat(true));
+}
