@@ -232,15 +232,15 @@ fn run(args: &SuiteArgs, default: &str) -> Result<(SuiteConfig, Vec<SuiteRow>), 
         .config
         .clone()
         .unwrap_or_else(|| PathBuf::from(default));
-    let mut cfg = SuiteConfig::load(&path)?;
-    if args.robot.is_some() || args.allow_robot_mismatch {
-        if let Some(r) = &args.robot {
-            cfg.robot = Some(r.clone());
-        }
-        cfg.allow_robot_mismatch |= args.allow_robot_mismatch;
-        cfg.validate()
-            .map_err(|e| format!("{}: {e}", path.display()))?;
+    // The command line's robot first, then one validation against it.
+    let mut cfg: SuiteConfig =
+        eemp_core::config_error::load_toml(&path).map_err(|e| e.to_string())?;
+    if let Some(r) = &args.robot {
+        cfg.robot = Some(r.clone());
     }
+    cfg.allow_robot_mismatch |= args.allow_robot_mismatch;
+    cfg.validate()
+        .map_err(|e| format!("{}: {e}", path.display()))?;
     let total = cfg.runs()?.len();
     let bar = ProgressBar::new(total as u64);
     bar.set_style(

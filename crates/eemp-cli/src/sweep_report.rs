@@ -1,7 +1,7 @@
 //! `eemp sweep report DIR`: the study's figures (drawn with [`crate::plots`] from the data
 //! `eemp-study` selects) and the report files.
 //!
-//! Writes `DIR/tables/a1_<gait>.toml`, `DIR/figures/*.png`, `DIR/report.md` (figures linked) and
+//! Writes `DIR/tables/<robot>_<gait>.toml`, `DIR/figures/*.png`, `DIR/report.md` (figures linked) and
 //! `DIR/report.html` (figures embedded); with `--tables-out DIR2`, the tables also to DIR2.
 //! The selection settings are the folder's `sweep.toml` `[selection]` (a key missing there takes
 //! its default).

@@ -30,7 +30,7 @@ pub struct TeleopArgs {
     /// Run as fast as the computer allows instead of in real time (scripts, tests).
     #[arg(long)]
     pub headless: bool,
-    /// trot, walk or free, with its per-speed table (tables/a1_<gait>.toml).
+    /// trot, walk or free, with its per-speed table (tables/<robot>_<gait>.toml).
     #[arg(long, default_value = "trot")]
     pub gait: String,
     /// Simulated seconds (default: a script's last segment + 3 s, else 60 s).

@@ -46,7 +46,7 @@ pub struct WalkArgs {
     /// ellipse_ry_m); default: the paper's Table II.
     #[arg(long)]
     pub params: Option<PathBuf>,
-    /// EEMP-Analytical: a per-speed parameter table (tables/a1_<gait>.toml) used in place of --params.
+    /// EEMP-Analytical: a per-speed parameter table (tables/<robot>_<gait>.toml) used in place of --params.
     #[arg(long, conflicts_with = "params")]
     pub params_table: Option<PathBuf>,
     /// Factor on V·ΔT in eq. (6): 0.5 = the paper's eq. (6), 1.0 = its Algorithm 1.

@@ -172,8 +172,11 @@ impl PolicyController {
 
     /// The reference moves on whether or not the action was usable.
     fn advance(&mut self, command: &VelocityCommand) {
-        if let Agent::Imitation { agent, memory } = &mut self.agent {
-            memory.phase = agent.next_phase(memory.phase, command.vx_mps);
+        match &mut self.agent {
+            Agent::Imitation { agent, memory } => {
+                memory.phase = agent.next_phase(memory.phase, command.vx_mps);
+            }
+            Agent::ModelFree { memory, .. } => memory.advance_clock(),
         }
     }
 

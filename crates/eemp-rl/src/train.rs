@@ -279,16 +279,16 @@ pub fn train(
     let id = robot.id();
     match make_envs(config, robot, opts.threads)? {
         AnyVecEnv::ModelFree(v) => Trainer::new(config, v, None, opts)?
-            .stamped(id)
+            .stamped(id)?
             .run(opts, on_iteration),
         AnyVecEnv::Imitation(v, m) => Trainer::new(config, v, Some(m), opts)?
-            .stamped(id)
+            .stamped(id)?
             .run(opts, on_iteration),
         AnyVecEnv::EempRl(v) => Trainer::new(config, v, None, opts)?
-            .stamped(id)
+            .stamped(id)?
             .run(opts, on_iteration),
         AnyVecEnv::CartPole(v) => Trainer::new(config, v, None, opts)?
-            .stamped(id)
+            .stamped(id)?
             .run(opts, on_iteration),
     }
 }
@@ -406,16 +406,28 @@ impl<E: Env> Trainer<E> {
         Ok(t)
     }
 
-    /// The policy records the robot it is trained on (also after a resume).
-    fn stamped(mut self, robot: eemp_core::robot::RobotId) -> Self {
+    /// The policy records the robot it is trained on; a checkpoint made on another robot is
+    /// refused (its stamp survives the resume).
+    fn stamped(mut self, robot: eemp_core::robot::RobotId) -> Result<Self, String> {
+        if let Some(theirs) = &self.policy.robot {
+            if *theirs != robot {
+                return Err(format!(
+                    "the checkpoint was trained on robot '{}' (physics {}), not on '{}' \
+                     (physics {}); resume with its robot file or use another --out",
+                    theirs.name, theirs.physics_hash, robot.name, robot.physics_hash
+                ));
+            }
+        }
         self.policy.robot = Some(robot);
-        self
+        Ok(self)
     }
 
     /// Fine-tuning ([`TrainConfig::init_policy`]): the networks, log-std and normaliser of a
     /// policy file of the same task and shapes.
     fn start_from(&mut self, path: &Path) -> Result<(), String> {
         let mut p = Policy::load(path, Some(self.config.task))?;
+        // A fine-tune starts a new run: it takes the robot it trains on (transfer is allowed).
+        p.robot = None;
         if adds_gait_clock(&p.config, &self.config) {
             p = p.with_appended_inputs(self.policy.net.obs_dim())?;
         }
@@ -734,6 +746,7 @@ impl<E: Env> Trainer<E> {
             ));
         }
         let p = Policy::from_file(&lpath, &f, Some(self.config.task))?;
+        self.policy.robot = p.robot.clone();
         for (dst, src) in self.policy.net.vars().iter().zip(p.net.vars()) {
             dst.set(src.as_tensor()).map_err(|e| e.to_string())?;
         }

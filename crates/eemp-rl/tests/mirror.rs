@@ -247,6 +247,7 @@ fn the_clock_advances_one_period_per_step_and_restarts_with_the_episode() {
     // 2 Hz at 50 Hz: 25 steps per cycle.
     for _ in 0..30 {
         m.push(&s, &q0, &[0.0; 12]);
+        m.advance_clock();
     }
     assert!((m.clock_phase - 0.2).abs() < 1e-9, "{}", m.clock_phase);
     m.start(&s, &q0);

@@ -492,10 +492,14 @@ impl PolicyMemory {
         self.clock_phase = 0.0;
     }
 
+    /// One policy period on: the gait clock moves whether or not the action was usable.
+    pub fn advance_clock(&mut self) {
+        self.clock_phase = (self.clock_phase + self.clock_step).rem_euclid(1.0);
+    }
+
     /// After a policy step: remember the action and push the frame of the state it acted on.
     pub fn push(&mut self, state: &RobotState, q0: &LegMap<Vector3<f64>>, action: &[f32]) {
         self.prev_action.copy_from_slice(action);
-        self.clock_phase = (self.clock_phase + self.clock_step).rem_euclid(1.0);
         if !self.history.is_empty() {
             self.history.pop_back();
             self.history.push_front(frame(state, q0));
@@ -1092,6 +1096,7 @@ impl Env for ModelFreeEnv {
         self.qd_prev = qd;
         self.memory.last_torques = last_tau;
         self.memory.push(&state_before, &self.q0, action);
+        self.memory.advance_clock();
         self.steps += 1;
         let resample = (cfg.commands.resample_s / dt).round() as usize;
         if !fell && resample > 0 && self.steps.is_multiple_of(resample) {
