@@ -3,7 +3,6 @@
 
 use crate::video::{write_gif, VideoFrame, FPS};
 use eemp_core::leg::{Leg, LegMap};
-use eemp_core::robot::RobotConfig;
 use nalgebra::Vector3;
 use std::path::PathBuf;
 
@@ -19,10 +18,7 @@ pub struct ReplayArgs {
 }
 
 pub fn run(args: &ReplayArgs) -> Result<(), String> {
-    let robot = match &args.robot {
-        Some(p) => RobotConfig::load(p).map_err(|e| e.to_string())?,
-        None => RobotConfig::a1(),
-    };
+    let robot = crate::robot_arg::load_robot(args.robot.as_deref())?;
     let trace = args.dir.join("trace.csv");
     let mut rd = csv::Reader::from_path(&trace)
         .map_err(|e| format!("cannot read {}: {e}", trace.display()))?;

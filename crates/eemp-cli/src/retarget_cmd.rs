@@ -49,10 +49,7 @@ pub fn run(args: &RetargetArgs) -> Result<(), String> {
             args.mocap_dir.join(format!("{}_joint_pos.txt", args.clip))
         }
     };
-    let robot = match &args.robot {
-        Some(p) => RobotConfig::load(p).map_err(|e| e.to_string())?,
-        None => RobotConfig::a1(),
-    };
+    let robot = crate::robot_arg::load_robot(args.robot.as_deref())?;
     let clip = MocapClip::load(&path).map_err(|e| e.to_string())?;
     let (start, end) = match &args.frames {
         Some(f) => parse_frames(f)?,

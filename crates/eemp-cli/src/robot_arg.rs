@@ -22,12 +22,9 @@ impl RobotArgs {
     }
 }
 
-/// `path`'s robot, or the shipped A1.
+/// `path`'s robot, or the shipped A1 ([`RobotConfig::load_or_a1`]).
 pub fn load_robot(path: Option<&std::path::Path>) -> Result<RobotConfig, String> {
-    match path {
-        Some(p) => RobotConfig::load(p).map_err(|e| e.to_string()),
-        None => Ok(RobotConfig::a1()),
-    }
+    RobotConfig::load_or_a1(path).map_err(|e| e.to_string())
 }
 
 /// What summary.json says about the robot a run used.

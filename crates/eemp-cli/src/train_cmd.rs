@@ -87,10 +87,7 @@ pub fn run(args: &TrainArgs) -> Result<(), String> {
             .map(|n| n.get())
             .unwrap_or(1),
     };
-    let robot = match &args.robot {
-        Some(p) => RobotConfig::load(p).map_err(|e| e.to_string())?,
-        None => RobotConfig::a1(),
-    };
+    let robot = crate::robot_arg::load_robot(args.robot.as_deref())?;
     if !args.resume && args.out.join("checkpoint").join("state.json").exists() {
         return Err(format!(
             "{} already holds a training run: pass --resume to continue it, or choose another --out",

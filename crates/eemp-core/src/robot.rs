@@ -118,6 +118,16 @@ impl RobotId {
     }
 }
 
+/// FNV-1a, 64 bit: a stable hash of a canonical text (never of process, platform or map order).
+pub fn fnv1a64(text: &str) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for b in text.bytes() {
+        h ^= u64::from(b);
+        h = h.wrapping_mul(0x0000_0100_0000_01b3);
+    }
+    h
+}
+
 /// A validated [`SdkConfig`]: the motor index of each joint.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MotorOrder {
@@ -286,6 +296,15 @@ impl RobotConfig {
         config
     }
 
+    /// The robot file at `path`, loaded and validated, or the shipped A1 without one (what
+    /// every `--robot` / `robot=` means).
+    pub fn load_or_a1(path: Option<&std::path::Path>) -> Result<Self, ConfigError> {
+        match path {
+            Some(p) => Self::load(p),
+            None => Ok(Self::a1()),
+        }
+    }
+
     /// Loads and validates a robot file.
     pub fn load(path: &std::path::Path) -> Result<Self, ConfigError> {
         let config: RobotConfig = crate::config_error::load_toml(path)?;
@@ -372,14 +391,9 @@ impl RobotConfig {
             leg: &self.leg,
         })
         .expect("a robot's numbers serialise");
-        let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-        for b in text.bytes() {
-            h ^= u64::from(b);
-            h = h.wrapping_mul(0x0000_0100_0000_01b3);
-        }
         RobotId {
             name: self.name.clone(),
-            physics_hash: format!("{h:016x}"),
+            physics_hash: format!("{:016x}", fnv1a64(&text)),
         }
     }
 

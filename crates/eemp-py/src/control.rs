@@ -96,14 +96,6 @@ fn flat(m: &LegMap<Vector3<f64>>) -> Vec<f64> {
         .collect()
 }
 
-/// A robot file (`robot=` in Python), or the shipped A1.
-fn load_robot(path: Option<&std::path::Path>) -> PyResult<RobotConfig> {
-    match path {
-        Some(p) => RobotConfig::load(p).map_err(value_error),
-        None => Ok(RobotConfig::a1()),
-    }
-}
-
 fn walk_spec(
     gait: &str,
     params: Option<PathBuf>,
@@ -157,7 +149,7 @@ impl PyEempController {
         params_table: Option<PathBuf>,
         robot: Option<PathBuf>,
     ) -> PyResult<Self> {
-        let robot = load_robot(robot.as_deref())?;
+        let robot = RobotConfig::load_or_a1(robot.as_deref()).map_err(value_error)?;
         let spec = walk_spec(gait, params, params_table, VelocityCommand::default(), 1.0)?;
         spec.validate().map_err(value_error)?;
         let controller = eemp_controller(&robot, &spec).map_err(value_error)?;
@@ -319,7 +311,7 @@ pub fn walk_json(
     estimator: &str,
     robot: Option<PathBuf>,
 ) -> PyResult<String> {
-    let robot = load_robot(robot.as_deref())?;
+    let robot = RobotConfig::load_or_a1(robot.as_deref()).map_err(value_error)?;
     if !(duration_s.is_finite() && duration_s > 0.0 && duration_s <= 3600.0) {
         return Err(value_error(format!(
             "duration_s {duration_s} is out of range: allowed (0, 3600]"

@@ -106,10 +106,7 @@ pub struct Grid {
 impl Grid {
     /// The robot of the runs (validated when the sweep file was read).
     pub fn robot_config(&self) -> Result<eemp_core::robot::RobotConfig, String> {
-        match &self.robot {
-            Some(p) => eemp_core::robot::RobotConfig::load(p).map_err(|e| e.to_string()),
-            None => Ok(eemp_core::robot::RobotConfig::a1()),
-        }
+        eemp_core::robot::RobotConfig::load_or_a1(self.robot.as_deref()).map_err(|e| e.to_string())
     }
 }
 

@@ -31,13 +31,7 @@ pub struct RunId(pub u64);
 
 impl RunId {
     pub fn of(canonical: &str) -> Self {
-        // FNV-1a, 64 bit.
-        let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-        for b in canonical.bytes() {
-            h ^= u64::from(b);
-            h = h.wrapping_mul(0x0000_0100_0000_01b3);
-        }
-        RunId(h)
+        RunId(eemp_core::robot::fnv1a64(canonical))
     }
 }
 
