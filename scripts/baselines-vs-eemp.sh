@@ -15,7 +15,7 @@ for speed in 0.1 0.3 0.5 0.8 1.0; do
   for method in $methods; do
     dir="$out/$method-$speed"
     case "$method" in
-      model-free) args=(--controller model-free --policy policies/a1_model_free.safetensors) ;;
+      model-free) args=(--controller model-free --policy policies/a1_model_free_v1.safetensors) ;;
       imitation) args=(--controller imitation --policy policies/a1_imitation.safetensors) ;;
       *) args=(--gait "$method" --params-table "tables/a1_$method.toml") ;;
     esac

@@ -6,7 +6,7 @@
 set -euo pipefail
 eemp="${1:-target/release/eemp}"
 out="${2:-out/robustness-table}"
-policy="${3:-policies/a1_model_free.safetensors}"
+policy="${3:-policies/a1_model_free_v1.safetensors}"
 echo "| scenario | EEMP trot, GT | EEMP trot, KF | EEMP free, GT | EEMP free, KF | model-free, GT | model-free, KF |"
 echo "|---|---|---|---|---|---|---|"
 for sc in flat scenarios/*.toml; do

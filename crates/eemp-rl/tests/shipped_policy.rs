@@ -50,7 +50,7 @@ fn walk_spec(vx_mps: f64, duration_s: f64) -> WalkSpec {
 fn the_shipped_model_free_policy_walks_5_s_at_0_5_m_per_s() {
     let robot = RobotConfig::a1();
     let policy = Policy::load(
-        &repo_file("policies/a1_model_free.safetensors"),
+        &repo_file("policies/a1_model_free_v1.safetensors"),
         Some(TaskKind::ModelFree),
     )
     .unwrap();
@@ -179,9 +179,7 @@ fn the_omni_and_energy_aware_fine_tunes_walk_5_s_at_0_5_m_per_s_on_the_filter() 
     let robot = RobotConfig::a1();
     for (file, energy) in [
         ("policies/a1_model_free_omni.safetensors", false),
-        ("policies/a1_model_free_energy.safetensors", true),
-        ("policies/a1_model_free_clock.safetensors", false),
-        ("policies/a1_model_free_clock_energy.safetensors", true),
+        ("policies/a1_model_free_energy_v1.safetensors", true),
     ] {
         let policy = Policy::load(&repo_file(file), Some(TaskKind::ModelFree)).unwrap();
         assert_eq!(policy.config.estimator, eemp_rl::config::TrainEstimator::Kf);
@@ -206,13 +204,15 @@ fn the_omni_and_energy_aware_fine_tunes_walk_5_s_at_0_5_m_per_s_on_the_filter() 
 }
 
 #[test]
-fn the_gait_clock_fine_tunes_carry_their_clock_and_follow_the_trot_schedule() {
-    // The clock (2 Hz) is in the observation and the controller runs it; walking at 0.5 m/s the
-    // diagonal pairs share their contact state most of the time (the schedule is a trot).
+fn the_shipped_baselines_carry_their_clock_and_trot_on_the_filter() {
+    // Issue 21's baselines (and the gait-clock stage they continue: the same checks hold for
+    // policies/a1_model_free_clock*.safetensors, measured in reports/baselines). The clock (2 Hz)
+    // is in the observation and the controller runs it; walking at 0.5 m/s the diagonal pairs
+    // share their contact state most of the time (the schedule is a trot).
     let robot = RobotConfig::a1();
     for file in [
-        "policies/a1_model_free_clock.safetensors",
-        "policies/a1_model_free_clock_energy.safetensors",
+        "policies/a1_model_free.safetensors",
+        "policies/a1_model_free_energy.safetensors",
     ] {
         let policy = Policy::load(&repo_file(file), Some(TaskKind::ModelFree)).unwrap();
         assert_eq!(
@@ -227,10 +227,11 @@ fn the_gait_clock_fine_tunes_carry_their_clock_and_follow_the_trot_schedule() {
         let start = StartPose::from_joints(&robot, c.default_pose());
         let spec = kf_walk_spec(&robot, 0.5, 5.0);
         let run = run_walk_with(&robot, &spec, &start, &mut c, |_| {}).unwrap();
-        assert_walked(&run, 0.15, 0.9);
+        // reports/baselines: 0.04 m/s RMSE at 0.5 m/s over 20 s.
+        assert_walked(&run, 0.1, 0.9);
         let together = run.gait.as_ref().expect("measured").diagonal_pairs_together;
         assert!(
-            together > 0.65,
+            together > 0.85,
             "{file}: diagonal pairs together {together}"
         );
     }
