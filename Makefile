@@ -2,7 +2,7 @@
 #   make demo   -- the main job: a simulated A1 walking under EEMP, metrics and figures in out/demo
 #   make test   -- every test (what .ci/run runs)
 # Both install MuJoCo 3.17.0 into .mujoco/ first (from the PyPI wheel; nothing else is needed).
-.PHONY: mujoco demo stand test lint bench python python-test
+.PHONY: mujoco demo stand test lint bench python python-test viewer
 
 MUJOCO := .mujoco/lib/libmujoco.so
 
@@ -17,16 +17,20 @@ demo: $(MUJOCO)
 stand: $(MUJOCO)
 	cargo run --release -p eemp-cli -- stand --duration 20 --out out/stand
 
+# Tests build the optional Rerun recorder too (eemp-viz, `--features eemp-cli/rerun`).
 test: $(MUJOCO)
 	cargo fmt --all -- --check
-	cargo clippy --workspace --all-targets -- -D warnings
-	cargo test --workspace
-	$(MAKE) python-test
+	cargo clippy --workspace --all-targets --features eemp-cli/rerun -- -D warnings
+	cargo test --workspace --features eemp-cli/rerun
+	$(MAKE) python-test WHEEL_PROFILE=dev
 
 # The Python package (crates/eemp-py): an optimised wheel (profile `python`: release without debug
 # info) in target/wheels with libmujoco inside (auditwheel repair), installed into .venv with its
 # test tools (≈ 2.5 min from scratch on 2 cores).
 VENV := .venv/.installed
+# `make test` builds the wheel with the dev profile (the test profile's settings, see Cargo.toml):
+# the dependencies the test build just compiled are reused instead of compiled a third time.
+WHEEL_PROFILE ?= python
 
 $(VENV): crates/eemp-py/requirements-dev.txt
 	./scripts/install-python.sh
@@ -36,11 +40,17 @@ python: $(MUJOCO) $(VENV)
 	@# maturin repairs the linked module in place: relink, so each repair starts from the original.
 	touch crates/eemp-py/src/lib.rs
 	PATH="$(CURDIR)/.venv/bin:$$PATH" PYO3_PYTHON="$(CURDIR)/.venv/bin/python" \
-		maturin build --profile python -m crates/eemp-py/Cargo.toml --out target/wheels --auditwheel repair
+		maturin build --profile $(WHEEL_PROFILE) -m crates/eemp-py/Cargo.toml --out target/wheels --auditwheel repair
 	.venv/bin/pip install --quiet --disable-pip-version-check --force-reinstall --no-deps target/wheels/eemp-*.whl
 
 python-test: python
 	.venv/bin/python -m pytest -q crates/eemp-py/tests
+
+# `eemp` with the Rerun recorder (--rerun FILE.rrd, --rerun-connect, --rerun-serve): Rerun's
+# ~300 extra crates, a few minutes more on 2 cores than the default build. The viewer itself:
+# pip install rerun-sdk==0.36.3 (the same minor version as the recorder).
+viewer: $(MUJOCO)
+	cargo build --release -p eemp-cli --features rerun
 
 bench: $(MUJOCO)
 	cargo run --release -p eemp-cli -- bench mpc

@@ -4,7 +4,7 @@
 use eemp_core::estimator::KfConfig;
 use eemp_core::hardware::a1_protocol::LowState;
 use eemp_core::hardware::safety::SafetyConfig;
-use eemp_core::leg::Leg;
+use eemp_core::leg::{Leg, LegMap};
 use eemp_core::planner::params_table::ParamsTable;
 use eemp_core::planner::{Gait, PlannerConfig, PlannerParams, VelocityCommand};
 use eemp_core::robot::RobotConfig;
@@ -57,6 +57,10 @@ pub struct HwArgs {
     pub address: Option<SocketAddr>,
     #[command(flatten)]
     pub robot: crate::robot_arg::RobotArgs,
+    /// On a robot there is no truth: the recording shows the filter's estimate, the commands
+    /// and the torques sent (`--rerun-serve PORT` for a robot computer without a display).
+    #[command(flatten)]
+    pub rerun: crate::rerun_arg::RerunArgs,
     /// Local address to send from (the SDK uses port 8080).
     #[arg(long, default_value = "0.0.0.0:8080")]
     pub bind: SocketAddr,
@@ -246,7 +250,37 @@ pub fn run_hw_cmd(args: &HwArgs) -> Result<(), String> {
     let mut next_row = 0.0;
     let mut printed = 0;
     let dry = args.dry_run;
+    let mut recorder = args.rerun.open_world(crate::rerun_arg::World {
+        name: &format!("hw: {} (the filter's estimate)", args.controller),
+        robot: robot.clone(),
+        scene: Default::default(),
+        pushes: Vec::new(),
+        estimated: false,
+        step_s: 1.0 / args.rate,
+    })?;
+    let kin = eemp_core::kinematics::LegKinematics::new(&robot);
     let report = run_hw(&robot, controller.as_mut(), &|_| command, &opts, &mut |c| {
+        if let Some(e) = c.estimate {
+            let output = eemp_core::controller::ControlOutput {
+                torques: LegMap::from_fn(|leg| {
+                    let j = c.sent[leg];
+                    nalgebra::Vector3::new(j[0].tau, j[1].tau, j[2].tau)
+                }),
+                forces_world: LegMap::splat(nalgebra::Vector3::zeros()),
+                mpc_event: None,
+            };
+            recorder.observe(&eemp_sim::closed_loop::StepRecord {
+                state: e,
+                estimate: e,
+                plan: None,
+                command: c.command,
+                output: &output,
+                feet_world: &eemp_core::controller::feet_world(&kin, e),
+                contacts: LegMap::splat(false),
+                loaded: LegMap::splat(false),
+                foot_normal_n: LegMap::splat(0.0),
+            });
+        }
         if dry && printed < 5 {
             printed += 1;
             println!("t {:.3} s: would send (kp, kd, q*, τ) per joint:", c.t_s);
@@ -285,7 +319,9 @@ pub fn run_hw_cmd(args: &HwArgs) -> Result<(), String> {
             }
         }
     })?;
+    let recording = recorder.finish();
     let summary = serde_json::json!({
+        "rerun": recording,
         "controller": args.controller,
         "address": args.address.map(|a| a.to_string()),
         "robot": crate::robot_arg::robot_json(&robot, args.robot.allow_robot_mismatch),

@@ -6,6 +6,7 @@ pub mod hw_cmd;
 pub mod output;
 pub mod plots;
 pub mod replay_cmd;
+pub mod rerun_arg;
 pub mod retarget_cmd;
 pub mod robot_arg;
 pub mod stand_cmd;

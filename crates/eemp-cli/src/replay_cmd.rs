@@ -1,9 +1,16 @@
-//! `eemp replay DIR --video FILE`: a video of a finished walk from its `trace.csv` (joint
-//! angles and trunk pose per row; traces from before the joint columns cannot be replayed).
+//! `eemp replay DIR --video FILE` / `--rerun FILE.rrd`: a video or a Rerun recording of a
+//! finished walk from its `trace.csv` (trunk pose, joints, torques, feet per row; traces from
+//! before the joint columns cannot be replayed). A trace holds no planner geometry, forces or
+//! estimate: the recording of a replay shows the robot, its touchdowns and the time series;
+//! record the walk itself (`eemp walk --rerun`) for ellipses, footholds and forces.
 
 use crate::video::{write_gif, VideoFrame, FPS};
+use eemp_core::body_state::{BodyState, LegJointState, RobotState};
+use eemp_core::controller::ControlOutput;
 use eemp_core::leg::{Leg, LegMap};
-use nalgebra::Vector3;
+use eemp_core::planner::VelocityCommand;
+use eemp_sim::closed_loop::StepRecord;
+use nalgebra::{UnitQuaternion, Vector3};
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
@@ -12,12 +19,26 @@ pub struct ReplayArgs {
     pub dir: PathBuf,
     /// The video to write (animated GIF).
     #[arg(long)]
-    pub video: PathBuf,
+    pub video: Option<PathBuf>,
     #[arg(long)]
     pub robot: Option<PathBuf>,
+    #[command(flatten)]
+    pub rerun: crate::rerun_arg::RerunArgs,
+}
+
+/// One trace row as the closed loop would have shown it.
+struct Row {
+    state: RobotState,
+    command: VelocityCommand,
+    torques: LegMap<Vector3<f64>>,
+    feet_world: LegMap<Vector3<f64>>,
+    contacts: LegMap<bool>,
 }
 
 pub fn run(args: &ReplayArgs) -> Result<(), String> {
+    if args.video.is_none() && !args.rerun.wanted() {
+        return Err("replay needs --video FILE.gif and/or --rerun FILE.rrd (or --rerun-connect/--rerun-serve)".into());
+    }
     let robot = crate::robot_arg::load_robot(args.robot.as_deref())?;
     let trace = args.dir.join("trace.csv");
     let mut rd = csv::Reader::from_path(&trace)
@@ -45,15 +66,31 @@ pub fn run(args: &ReplayArgs) -> Result<(), String> {
     ]
     .map(col);
     let base: Vec<usize> = base.into_iter().collect::<Result<_, _>>()?;
-    let vel: Vec<usize> = ["vx_mps", "vy_mps", "cmd_vx_mps", "cmd_vy_mps"]
-        .iter()
-        .map(|n| col(n))
-        .collect::<Result<_, _>>()?;
+    let vel: Vec<usize> = [
+        "vx_mps",
+        "vy_mps",
+        "cmd_vx_mps",
+        "cmd_vy_mps",
+        "vz_mps",
+        "cmd_yaw_rate_rps",
+    ]
+    .iter()
+    .map(|n| col(n))
+    .collect::<Result<_, _>>()?;
     let mut qcol = LegMap::splat([0usize; 3]);
+    let mut qdcol = LegMap::splat([0usize; 3]);
+    let mut taucol = LegMap::splat([0usize; 3]);
+    let mut footcol = LegMap::splat([0usize; 3]);
+    let mut contactcol = LegMap::splat(0usize);
     for leg in Leg::ALL {
+        let n = leg.short_name();
         for j in 0..3 {
-            qcol[leg][j] = col(&format!("{}_q{j}_rad", leg.short_name()))?;
+            qcol[leg][j] = col(&format!("{n}_q{j}_rad"))?;
+            qdcol[leg][j] = col(&format!("{n}_qd{j}_radps"))?;
+            taucol[leg][j] = col(&format!("{n}_tau{j}_nm"))?;
+            footcol[leg][j] = col(&format!("{n}_foot_{}_m", ["x", "y", "z"][j]))?;
         }
+        contactcol[leg] = col(&format!("{n}_contact"))?;
     }
     // The ground the walk was on: its scenario's terrain.
     let summary: serde_json::Value = std::fs::read_to_string(args.dir.join("summary.json"))
@@ -69,6 +106,7 @@ pub fn run(args: &ReplayArgs) -> Result<(), String> {
         None => (Default::default(), None),
     };
     let mut frames = Vec::new();
+    let mut rows = Vec::new();
     let mut next_t = f64::NEG_INFINITY;
     for (k, rec) in rd.records().enumerate() {
         let rec = rec.map_err(|e| format!("{} row {}: {e}", trace.display(), k + 2))?;
@@ -86,7 +124,47 @@ pub fn run(args: &ReplayArgs) -> Result<(), String> {
                 })
         };
         let t = v(base[0])?;
-        if t + 1e-9 < next_t {
+        if args.rerun.wanted() {
+            let mut joints = LegMap::splat(LegJointState::default());
+            let (mut torques, mut feet_world) = (
+                LegMap::splat(Vector3::zeros()),
+                LegMap::splat(Vector3::zeros()),
+            );
+            let mut contacts = LegMap::splat(false);
+            for leg in Leg::ALL {
+                for j in 0..3 {
+                    joints[leg].q[j] = v(qcol[leg][j])?;
+                    joints[leg].qd[j] = v(qdcol[leg][j])?;
+                    torques[leg][j] = v(taucol[leg][j])?;
+                    feet_world[leg][j] = v(footcol[leg][j])?;
+                }
+                contacts[leg] = v(contactcol[leg])? > 0.5;
+            }
+            let r_world_body =
+                UnitQuaternion::from_euler_angles(v(base[4])?, v(base[5])?, v(base[6])?);
+            let heading = UnitQuaternion::from_euler_angles(0.0, 0.0, v(base[6])?);
+            rows.push(Row {
+                state: RobotState {
+                    time_s: t,
+                    body: BodyState {
+                        p_world: Vector3::new(v(base[1])?, v(base[2])?, v(base[3])?),
+                        r_world_body,
+                        v_world: heading * Vector3::new(v(vel[0])?, v(vel[1])?, v(vel[4])?),
+                        omega_world: Vector3::zeros(),
+                    },
+                    joints,
+                },
+                command: VelocityCommand {
+                    vx_mps: v(vel[2])?,
+                    vy_mps: v(vel[3])?,
+                    yaw_rate_rps: v(vel[5])?,
+                },
+                torques,
+                feet_world,
+                contacts,
+            });
+        }
+        if args.video.is_none() || t + 1e-9 < next_t {
             continue;
         }
         next_t = if next_t.is_finite() {
@@ -109,7 +187,7 @@ pub fn run(args: &ReplayArgs) -> Result<(), String> {
             measured: [v(vel[0])?, v(vel[1])?],
         });
     }
-    if frames.is_empty() {
+    if frames.is_empty() && rows.is_empty() {
         return Err(format!("{} holds no rows", trace.display()));
     }
     let label = summary["method"]
@@ -118,7 +196,66 @@ pub fn run(args: &ReplayArgs) -> Result<(), String> {
         .unwrap_or("replay")
         .to_string();
     let scene = terrain.scene(friction.unwrap_or(robot.simulation.floor_friction));
-    write_gif(&robot, &scene, &frames, &label, &args.video)?;
-    println!("wrote {} ({} frames)", args.video.display(), frames.len());
+    if !rows.is_empty() {
+        record(args, &robot, &scene, &label, &mut rows)?;
+    }
+    if let Some(video) = &args.video {
+        write_gif(&robot, &scene, &frames, &label, video)?;
+        println!("wrote {} ({} frames)", video.display(), frames.len());
+    }
+    Ok(())
+}
+
+/// The trace's rows through the recorder, as the closed loop's observer would have seen them
+/// (the yaw rate from successive yaws; no plan, forces or estimate).
+fn record(
+    args: &ReplayArgs,
+    robot: &eemp_core::robot::RobotConfig,
+    scene: &eemp_sim::mjcf::SceneExtras,
+    label: &str,
+    rows: &mut [Row],
+) -> Result<(), String> {
+    let step_s = match rows {
+        [a, b, ..] => b.state.time_s - a.state.time_s,
+        _ => robot.simulation.timestep_s,
+    };
+    for k in 1..rows.len() {
+        let dt = rows[k].state.time_s - rows[k - 1].state.time_s;
+        let dyaw = rows[k].state.body.rpy().z - rows[k - 1].state.body.rpy().z;
+        let dyaw =
+            (dyaw + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
+        if dt > 0.0 {
+            rows[k].state.body.omega_world.z = dyaw / dt;
+        }
+    }
+    let mut recorder = args.rerun.open_world(crate::rerun_arg::World {
+        name: &format!("replay: {label}"),
+        robot: robot.clone(),
+        scene: scene.clone(),
+        pushes: Vec::new(),
+        estimated: false,
+        step_s,
+    })?;
+    for row in rows.iter() {
+        let output = ControlOutput {
+            torques: row.torques,
+            forces_world: LegMap::splat(Vector3::zeros()),
+            mpc_event: None,
+        };
+        recorder.observe(&StepRecord {
+            state: &row.state,
+            estimate: &row.state,
+            plan: None,
+            command: row.command,
+            output: &output,
+            feet_world: &row.feet_world,
+            contacts: row.contacts,
+            loaded: row.contacts,
+            foot_normal_n: LegMap::splat(0.0),
+        });
+    }
+    if let Some(summary) = recorder.finish() {
+        println!("recorded {} trace rows: {summary}", rows.len());
+    }
     Ok(())
 }

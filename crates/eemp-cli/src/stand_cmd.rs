@@ -41,6 +41,8 @@ pub struct StandArgs {
     /// robots/go1.toml, or your own file.
     #[arg(long)]
     pub robot: Option<PathBuf>,
+    #[command(flatten)]
+    pub rerun: crate::rerun_arg::RerunArgs,
     /// Output folder.
     #[arg(long, default_value = "out/stand")]
     pub out: PathBuf,
@@ -122,6 +124,14 @@ pub fn run(args: &StandArgs) -> Result<(), String> {
     let mut write_error = None;
     let mut step = 0usize;
     let rise_s = profile.rise_s;
+    let mut recorder = args.rerun.open_world(crate::rerun_arg::World {
+        name: "stand: body motion on four feet",
+        robot: robot.clone(),
+        scene: Default::default(),
+        pushes: pushes.clone(),
+        estimated: !matches!(source, eemp_sim::closed_loop::StateSource::GroundTruth),
+        step_s: robot.simulation.timestep_s,
+    })?;
     let run = run_stand_on(
         &robot,
         controller,
@@ -130,6 +140,7 @@ pub fn run(args: &StandArgs) -> Result<(), String> {
         &pushes,
         &source,
         |r| {
+            recorder.observe(r);
             let s = &r.state.body;
             let rpy = s.rpy();
             let rf = &r.plan.expect("the stand controller always plans").body_now;
@@ -170,6 +181,9 @@ pub fn run(args: &StandArgs) -> Result<(), String> {
         },
     )
     .map_err(|e| e.to_string())?;
+    if let Some(summary) = recorder.finish() {
+        eprintln!("rerun: {summary}");
+    }
     if let Some(e) = write_error {
         return Err(e.to_string());
     }

@@ -46,6 +46,8 @@ pub struct TeleopArgs {
     pub seed: u64,
     #[command(flatten)]
     pub robot: crate::robot_arg::RobotArgs,
+    #[command(flatten)]
+    pub rerun: crate::rerun_arg::RerunArgs,
     #[arg(long)]
     pub out: PathBuf,
 }
@@ -200,6 +202,7 @@ pub fn run(args: &TeleopArgs) -> Result<(), String> {
     }
     let mut rows: Vec<Row> = Vec::new();
     let kin = eemp_core::kinematics::LegKinematics::new(&robot);
+    let mut recorder = args.rerun.open("teleop: EEMP", &robot, &spec)?;
     let run = run_walk_commanded(
         &robot,
         &spec,
@@ -207,6 +210,7 @@ pub fn run(args: &TeleopArgs) -> Result<(), String> {
         &mut controller,
         &mut command_at,
         |r| {
+            recorder.observe(r);
             let k = (r.state.time_s / dt).round() as usize;
             if !k.is_multiple_of(10) {
                 return;
@@ -226,6 +230,9 @@ pub fn run(args: &TeleopArgs) -> Result<(), String> {
         },
     )
     .map_err(|e| e.to_string())?;
+    if let Some(summary) = recorder.finish() {
+        eprintln!("rerun: {summary}\r");
+    }
     if args.keyboard {
         let _ = crossterm::terminal::disable_raw_mode();
     }

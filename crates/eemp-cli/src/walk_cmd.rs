@@ -121,6 +121,8 @@ pub struct WalkArgs {
     pub trace_hz: f64,
     #[command(flatten)]
     pub robot: crate::robot_arg::RobotArgs,
+    #[command(flatten)]
+    pub rerun: crate::rerun_arg::RerunArgs,
     /// Also write a video of the walk (animated GIF, 25 frames/s, rendered offscreen).
     #[arg(long)]
     pub video: Option<PathBuf>,
@@ -306,6 +308,16 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
         ));
     }
     let trace_every = (1000.0 / args.trace_hz).round().max(1.0) as usize;
+    // Before anything is written: a bad recording path or an absent viewer stops here.
+    let recording_name = format!(
+        "walk: {} at {} m/s",
+        match &driver {
+            Driver::Eemp => format!("EEMP ({gait})"),
+            Driver::Policy(_) => args.controller.clone(),
+        },
+        args.speed
+    );
+    let mut recorder = args.rerun.open(&recording_name, &robot, &spec)?;
     create_dir(&args.out).map_err(|e| e.to_string())?;
     let mut header: Vec<String> = [
         "time_s",
@@ -367,6 +379,7 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
     let video_every = (1.0 / (crate::video::FPS * robot.simulation.timestep_s)).round() as usize;
     let mut mu_estimate = f64::NAN;
     let observer = |r: &eemp_sim::closed_loop::StepRecord| {
+        recorder.observe(r);
         if let Some(ev) = &r.output.mpc_event {
             mu_estimate = ev.friction_coefficient;
         }
@@ -491,6 +504,7 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
             (run, label.to_string())
         }
     };
+    let recording = recorder.finish();
     if let Some(e) = write_error {
         return Err(e.to_string());
     }
@@ -584,6 +598,7 @@ pub fn run(args: &WalkArgs) -> Result<(), String> {
                 "floor_friction": spec.floor_friction.unwrap_or(robot.simulation.floor_friction),
             }),
         ),
+        ("rerun", serde_json::json!(recording)),
     ] {
         summary[key] = value;
     }

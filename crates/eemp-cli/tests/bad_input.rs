@@ -284,7 +284,7 @@ fn bad_clips_and_motions_exit_2_name_the_file_frame_and_marker_and_write_nothing
             "imitation",
             "--policy",
             Path::new(env!("CARGO_MANIFEST_DIR"))
-                .join("../../policies/a1_model_free.safetensors")
+                .join("../../policies/a1_model_free_v1.safetensors")
                 .to_str()
                 .unwrap(),
         ],
@@ -506,7 +506,7 @@ fn artifacts_of_another_robot_are_refused_naming_both_unless_allowed() {
     let table = concat!(env!("CARGO_MANIFEST_DIR"), "/../../tables/a1_trot.toml");
     let policy = concat!(
         env!("CARGO_MANIFEST_DIR"),
-        "/../../policies/a1_model_free.safetensors"
+        "/../../policies/a1_model_free_v1.safetensors"
     );
     for args in [
         vec![

@@ -33,7 +33,7 @@ fn config() -> SuiteConfig {
                 kind: "model-free".into(),
                 gait: None,
                 table: None,
-                policy: Some(repo("policies/a1_model_free.safetensors")),
+                policy: Some(repo("policies/a1_model_free_v1.safetensors")),
                 estimator: None,
                 adapt_friction: None,
                 kf_velocity_jump_mps: None,

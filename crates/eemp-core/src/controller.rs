@@ -13,7 +13,7 @@ use crate::leg_control::{
     clamp_torque, stance_torque, swing_torque, DynamicsModel, FootMeasurement, FootReference,
     SwingGains,
 };
-use crate::planner::PlannerParams;
+use crate::planner::{PlannedSwing, PlannerParams};
 use crate::robot::RobotConfig;
 use crate::slip::{FrictionAdapter, SlipConfig};
 use nalgebra::Vector3;
@@ -36,6 +36,26 @@ pub struct Plan {
     pub contacts_horizon: Vec<LegMap<bool>>,
     /// The planner parameters this plan was made with (None: a plan without them, standing).
     pub params: Option<PlannerParams>,
+    /// The planner's own geometry at this step (None: a plan without it, standing).
+    pub geometry: Option<PlanGeometry>,
+}
+
+/// What Algorithm 1 sees and decides at one step, in the world frame, for viewers and traces:
+/// eq. (5)'s placement ellipses and the running swings (eq. 6's touchdowns, eq. 7's paths).
+#[derive(Clone, Debug, PartialEq)]
+pub struct PlanGeometry {
+    /// Each ellipse's centre: the nominal foothold under the hip, on the ground the stance feet
+    /// stand on (z: ground plus the foot radius, as a touchdown), m.
+    pub ellipse_centres_world: LegMap<Vector3<f64>>,
+    /// The ellipses' axes follow the heading (yaw only), rad.
+    pub heading_yaw_rad: f64,
+    /// Semi-axes r_x (along the heading) and r_y, m.
+    pub ellipse_rx_m: f64,
+    pub ellipse_ry_m: f64,
+    /// Eq. (5)'s left-hand side per foot: above 1, the foot is outside its ellipse.
+    pub ellipse_values: LegMap<f64>,
+    /// The running swings (None: the leg is in stance).
+    pub swings: LegMap<Option<PlannedSwing>>,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

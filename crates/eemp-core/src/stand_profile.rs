@@ -199,6 +199,7 @@ impl StandPlanner {
             feet_horizon_world: vec![*feet_world; n],
             contacts_horizon: vec![LegMap::splat(true); n],
             params: None,
+            geometry: None,
         }
     }
 }

@@ -208,6 +208,21 @@ impl Simulation {
         self.data.forward();
     }
 
+    /// Puts the model in `state`'s pose and computes body poses only (mj_kinematics): for
+    /// viewers that draw a state they did not simulate (the estimate as a ghost, a trace).
+    pub fn set_pose(&mut self, state: &RobotState) {
+        let b = &state.body;
+        let q = b.r_world_body.coords;
+        let qpos = self.data.qpos_mut();
+        qpos[0..3].copy_from_slice(b.p_world.as_slice());
+        qpos[3..7].copy_from_slice(&[q.w, q.x, q.y, q.z]);
+        for leg in Leg::ALL {
+            let a = self.handles.qpos_adr[leg];
+            self.data.qpos_mut()[a..a + 3].copy_from_slice(state.joints[leg].q.as_slice());
+        }
+        self.data.kinematics();
+    }
+
     /// Computes kinematics, mass matrix and bias forces at the current state (mj_step1).
     pub fn prepare(&mut self) {
         self.data.step1();

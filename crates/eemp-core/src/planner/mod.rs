@@ -17,7 +17,7 @@ pub mod touchdown;
 use crate::body_reference::BodyReference;
 use crate::body_state::RobotState;
 use crate::config_error::{check_range, ConfigError};
-use crate::controller::Plan;
+use crate::controller::{Plan, PlanGeometry};
 use crate::kinematics::LegKinematics;
 use crate::leg::{Leg, LegMap};
 use crate::leg_control::FootReference;
@@ -104,17 +104,19 @@ pub struct VelocityCommand {
     pub yaw_rate_rps: f64,
 }
 
-/// One leg's running swing (world-frame trajectory, see [`EemPlanner::start_swing`]).
+/// One leg's running swing: when it started, its eq. (7) trajectory (world frame, see
+/// [`EemPlanner::start_swing`]) and its eq. (6) touchdown point.
 #[derive(Clone, Copy, Debug, PartialEq)]
-struct LegSwing {
-    start_s: f64,
-    trajectory: SwingTrajectory,
+pub struct PlannedSwing {
+    pub start_s: f64,
+    pub trajectory: SwingTrajectory,
     /// Predicted touchdown point (world), for the MPC's view of the horizon.
-    touchdown_world: Vector3<f64>,
+    pub touchdown_world: Vector3<f64>,
 }
 
-impl LegSwing {
-    fn covers(&self, t: f64) -> bool {
+impl PlannedSwing {
+    /// Whether the swing is running at `t` (s).
+    pub fn covers(&self, t: f64) -> bool {
         t >= self.start_s && t < self.start_s + self.trajectory.duration_s
     }
 }
@@ -126,7 +128,7 @@ pub struct EemPlanner {
     foot_radius_m: f64,
     horizon: usize,
     dt_s: f64,
-    swings: LegMap<Option<LegSwing>>,
+    swings: LegMap<Option<PlannedSwing>>,
     previous_legs: Vec<Leg>,
     steps: LegMap<usize>,
     /// Slew-limited velocity reference (heading frame), m/s.
@@ -275,6 +277,19 @@ impl EemPlanner {
         let swing = self
             .swings
             .map(|_, s| s.map(|s| world_to_body(&s.trajectory.sample(t - s.start_s), state)));
+        let geometry = PlanGeometry {
+            ellipse_centres_world: LegMap::from_fn(|leg| {
+                let mut c =
+                    body.p_world + body.r_world_body * self.kinematics.nominal_foot_body(leg);
+                c.z = ground_z + self.foot_radius_m;
+                c
+            }),
+            heading_yaw_rad: yaw,
+            ellipse_rx_m: params.ellipse_rx_m,
+            ellipse_ry_m: params.ellipse_ry_m,
+            ellipse_values: self.ellipse_values(state, feet_world, params),
+            swings: self.swings,
+        };
         Plan {
             stance,
             swing,
@@ -285,6 +300,7 @@ impl EemPlanner {
             feet_horizon_world,
             contacts_horizon,
             params: Some(*params),
+            geometry: Some(geometry),
         }
     }
 
@@ -463,7 +479,7 @@ impl EemPlanner {
         legs: &[Leg],
         params: &PlannerParams,
         ground_z: f64,
-    ) -> Vec<(Leg, LegSwing)> {
+    ) -> Vec<(Leg, PlannedSwing)> {
         let body = &state.body;
         let yaw = body.rpy().z;
         let heading = Rotation3::from_axis_angle(&Vector3::z_axis(), yaw);
@@ -498,7 +514,7 @@ impl EemPlanner {
             touchdown_world.z = ground_z + self.foot_radius_m;
             swings.push((
                 *leg,
-                LegSwing {
+                PlannedSwing {
                     start_s: t,
                     trajectory,
                     touchdown_world,

@@ -1,0 +1,179 @@
+//! `--rerun FILE.rrd`, `--rerun-connect ADDR`, `--rerun-serve PORT`: a Rerun recording of the
+//! run (issue 23). The recorder is the optional `eemp-viz` crate (`--features rerun`, `make
+//! viewer`): a default build accepts the options and says how to get it.
+
+use eemp_sim::closed_loop::{StateSource, StepRecord};
+use eemp_sim::walk::WalkSpec;
+use std::path::PathBuf;
+
+/// How to build an `eemp` that records (the default build does not pay for Rerun's ~400 crates).
+pub const HOW_TO_BUILD: &str =
+    "this eemp was built without Rerun: build it with `make viewer` (cargo build --release -p eemp-cli --features rerun)";
+
+#[derive(clap::Args, Clone, Debug)]
+pub struct RerunArgs {
+    /// Record the run for the Rerun viewer: robot, placement ellipses, footholds, forces and
+    /// time series (`rerun FILE.rrd` opens it; viewer: pip install rerun-sdk==0.36.3).
+    #[arg(long, value_name = "FILE.rrd", conflicts_with_all = ["rerun_connect", "rerun_serve"])]
+    pub rerun: Option<PathBuf>,
+    /// Stream the recording live to a running viewer: HOST:PORT or rerun+http://HOST:PORT/proxy
+    /// (start it with `rerun`; its port is 9876).
+    #[arg(long, value_name = "ADDR", conflicts_with = "rerun_serve")]
+    pub rerun_connect: Option<String>,
+    /// Serve the recording on PORT for a viewer elsewhere (`rerun rerun+http://THIS_HOST:PORT/proxy`);
+    /// for a computer without a display. Served while the command runs.
+    #[arg(long, value_name = "PORT")]
+    pub rerun_serve: Option<u16>,
+    /// Recording frames per simulated second, [1, 1000]; touchdowns and pushes are recorded
+    /// at the step they happen whatever it is.
+    #[arg(long, default_value_t = 100.0)]
+    pub rerun_hz: f64,
+}
+
+impl RerunArgs {
+    pub fn wanted(&self) -> bool {
+        self.rerun.is_some() || self.rerun_connect.is_some() || self.rerun_serve.is_some()
+    }
+
+    /// Opens the recorder for a walk of `spec` by `robot` (before the run: a bad path or an
+    /// absent viewer is reported now), or a recorder that records nothing without the options.
+    pub fn open(
+        &self,
+        name: &str,
+        robot: &eemp_core::robot::RobotConfig,
+        spec: &WalkSpec,
+    ) -> Result<Recorder, String> {
+        if !self.wanted() {
+            return Ok(Recorder::none());
+        }
+        let (robot, scene) = spec.simulated_world(robot);
+        self.open_world(World {
+            name,
+            step_s: robot.simulation.timestep_s,
+            robot,
+            scene,
+            pushes: spec.pushes.clone(),
+            estimated: !matches!(spec.state_source, StateSource::GroundTruth),
+        })
+    }
+
+    /// [`RerunArgs::open`] for any world (a replayed trace).
+    #[cfg(feature = "rerun")]
+    pub fn open_world(&self, world: World) -> Result<Recorder, String> {
+        use eemp_viz::{RerunOptions, RerunTarget};
+        let target = match (&self.rerun, &self.rerun_connect, self.rerun_serve) {
+            (Some(p), _, _) => RerunTarget::File(p.clone()),
+            (_, Some(a), _) => RerunTarget::Connect(a.clone()),
+            (_, _, Some(port)) => RerunTarget::Serve(port),
+            _ => return Ok(Recorder::none()),
+        };
+        let describe = match &target {
+            RerunTarget::File(p) => format!(
+                "recording to {} (open with `rerun {}`)",
+                p.display(),
+                p.display()
+            ),
+            RerunTarget::Connect(a) => format!("streaming to the Rerun viewer at {a}"),
+            RerunTarget::Serve(port) => {
+                format!("serving the recording: rerun rerun+http://THIS_HOST:{port}/proxy")
+            }
+        };
+        let mut options = RerunOptions::new(target);
+        options.frame_hz = self.rerun_hz;
+        let view = eemp_viz::RunView {
+            name: world.name.to_string(),
+            step_s: world.step_s,
+            robot: world.robot,
+            scene: world.scene,
+            pushes: world.pushes,
+            estimated: world.estimated,
+        };
+        let sink = eemp_viz::RerunSink::open(&options, &view).map_err(|e| e.to_string())?;
+        eprintln!("rerun: {describe}");
+        Ok(Recorder {
+            sink: Some(sink),
+            hz: self.rerun_hz,
+        })
+    }
+
+    #[cfg(not(feature = "rerun"))]
+    pub fn open_world(&self, _world: World) -> Result<Recorder, String> {
+        if !self.wanted() {
+            return Ok(Recorder::none());
+        }
+        Err(format!(
+            "--rerun, --rerun-connect and --rerun-serve: {HOW_TO_BUILD}"
+        ))
+    }
+}
+
+/// What a recording draws: the simulated robot and world, and how its steps come.
+pub struct World<'a> {
+    pub name: &'a str,
+    pub robot: eemp_core::robot::RobotConfig,
+    pub scene: eemp_sim::mjcf::SceneExtras,
+    pub pushes: Vec<eemp_sim::closed_loop::Push>,
+    /// The controller saw a state estimate (drawn as a ghost).
+    pub estimated: bool,
+    /// Time between the steps shown, s.
+    pub step_s: f64,
+}
+
+/// The run's recorder (or none): an observer on the closed loop.
+pub struct Recorder {
+    #[cfg(feature = "rerun")]
+    sink: Option<eemp_viz::RerunSink>,
+    #[cfg(feature = "rerun")]
+    hz: f64,
+}
+
+impl Recorder {
+    fn none() -> Self {
+        Recorder {
+            #[cfg(feature = "rerun")]
+            sink: None,
+            #[cfg(feature = "rerun")]
+            hz: 0.0,
+        }
+    }
+
+    pub fn observe(&mut self, _record: &StepRecord) {
+        #[cfg(feature = "rerun")]
+        if let Some(s) = &mut self.sink {
+            s.observe(_record);
+        }
+    }
+
+    /// Writes out what is queued; what the recording holds and lost, for summary.json (None
+    /// without a recording). Losses are warned about.
+    pub fn finish(self) -> Option<serde_json::Value> {
+        #[cfg(feature = "rerun")]
+        if let Some(s) = self.sink {
+            let r = s.finish();
+            if r.dropped > 0 || r.log_errors > 0 || !r.flushed {
+                eprintln!(
+                    "warning: the Rerun recording lost {} queued messages and {} log calls{} \
+                     (the viewer was slow or went away; the run itself was not slowed)",
+                    r.dropped,
+                    r.log_errors,
+                    if r.flushed {
+                        ""
+                    } else {
+                        ", and was not fully written out in time"
+                    }
+                );
+            }
+            return Some(serde_json::json!({
+                "rerun_version": eemp_viz::RERUN_VERSION,
+                "frame_hz": self.hz,
+                "frames": r.frames,
+                "touchdowns": r.touchdowns,
+                "pushes": r.pushes,
+                "dropped": r.dropped,
+                "log_errors": r.log_errors,
+                "flushed": r.flushed,
+            }));
+        }
+        None
+    }
+}

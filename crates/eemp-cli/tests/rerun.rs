@@ -1,0 +1,71 @@
+//! `eemp walk --rerun FILE.rrd` (a build with `--features rerun`, as `make test` builds).
+#![cfg(feature = "rerun")]
+
+use std::process::Command;
+
+#[test]
+fn a_walk_records_to_rerun_and_says_so_in_its_summary() {
+    let dir = tempfile::tempdir().unwrap();
+    let rrd = dir.path().join("walk.rrd");
+    let out = dir.path().join("out");
+    let o = Command::new(env!("CARGO_BIN_EXE_eemp"))
+        .args([
+            "walk",
+            "--gait",
+            "free",
+            "--speed",
+            "0.3",
+            "--duration",
+            "2",
+            "--rerun-hz",
+            "50",
+        ])
+        .arg("--rerun")
+        .arg(&rrd)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    let r = &summary["rerun"];
+    assert_eq!(r["frames"], 100, "{r}");
+    assert_eq!(r["dropped"], 0, "{r}");
+    assert_eq!(r["flushed"], true, "{r}");
+    assert!(std::fs::metadata(&rrd).unwrap().len() > 10_000);
+}
+
+#[test]
+fn a_recording_that_cannot_be_made_stops_the_walk_before_it_starts() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    for (flag, value, says) in [
+        (
+            "--rerun",
+            dir.path().join("no/such/walk.rrd").display().to_string(),
+            "cannot write the recording",
+        ),
+        (
+            "--rerun",
+            dir.path().join("walk.txt").display().to_string(),
+            "must end in .rrd",
+        ),
+        (
+            "--rerun-hz",
+            "0".to_string(),
+            "--rerun-hz 0 is out of range",
+        ),
+    ] {
+        let mut c = Command::new(env!("CARGO_BIN_EXE_eemp"));
+        c.args(["walk", "--duration", "1", flag, &value]);
+        if flag == "--rerun-hz" {
+            c.arg("--rerun").arg(dir.path().join("ok.rrd"));
+        }
+        let o = c.arg("--out").arg(&out).output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{flag} {value}: {err}");
+        assert!(err.contains(says), "{flag} {value}: {err}");
+        assert!(!out.exists(), "{flag} {value}: nothing written");
+    }
+}
