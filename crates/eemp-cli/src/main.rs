@@ -2,8 +2,8 @@
 
 use clap::{Parser, Subcommand};
 use eemp_cli::{
-    hw_cmd, replay_cmd, retarget_cmd, stand_cmd, suite_cmd, sweep_cmd, teleop_cmd, train_cmd,
-    walk_cmd,
+    hw_cmd, replay_cmd, reproduce_cmd, retarget_cmd, stand_cmd, suite_cmd, sweep_cmd, teleop_cmd,
+    train_cmd, walk_cmd,
 };
 
 #[derive(Parser)]
@@ -42,6 +42,9 @@ enum Command {
     Compare(suite_cmd::SuiteArgs),
     /// The methods across terrains, friction, pushes and payloads, resumable, with a report.
     Robustness(suite_cmd::SuiteArgs),
+    /// The whole study in order (sweeps, tables, trainings, comparison, robustness, teleop),
+    /// each stage resumable and skipped when up to date; --check lists stale artifacts.
+    Reproduce(reproduce_cmd::ReproduceArgs),
     /// Benchmarks.
     Bench {
         #[command(subcommand)]
@@ -107,6 +110,11 @@ fn main() {
         Command::SimRobot(args) => hw_cmd::run_sim_robot_cmd(&args),
         Command::Teleop(args) => teleop_cmd::run(&args),
         Command::Replay(args) => replay_cmd::run(&args),
+        Command::Reproduce(args) => match reproduce_cmd::run(&args) {
+            Ok(true) => Ok(()),
+            Ok(false) => std::process::exit(1),
+            Err(e) => Err(e),
+        },
         Command::Compare(args) => suite_cmd::compare(&args),
         Command::Robustness(args) => suite_cmd::robustness(&args),
         Command::Bench {

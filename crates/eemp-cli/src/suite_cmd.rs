@@ -26,6 +26,10 @@ pub struct SuiteArgs {
     /// Run tables and policies made for another robot (an experiment).
     #[arg(long)]
     pub allow_robot_mismatch: bool,
+    /// The suite at a small scale, to check a pipeline (`eemp reproduce --quick`), not a
+    /// result: the first seed only, runs of at most 4 s.
+    #[arg(long)]
+    pub quick: bool,
 }
 
 /// Mean, min and max over the runs that did not fall; falls and runs.
@@ -239,6 +243,10 @@ fn run(args: &SuiteArgs, default: &str) -> Result<(SuiteConfig, Vec<SuiteRow>), 
         cfg.robot = Some(r.clone());
     }
     cfg.allow_robot_mismatch |= args.allow_robot_mismatch;
+    if args.quick {
+        cfg.seeds.truncate(1);
+        cfg.duration_s = cfg.duration_s.min(4.0);
+    }
     cfg.validate()
         .map_err(|e| format!("{}: {e}", path.display()))?;
     let total = cfg.runs()?.len();
@@ -278,7 +286,7 @@ fn spread(s: &Stat) -> String {
 }
 
 /// A plain HTML page of a Markdown report: headings, tables, images, paragraphs.
-fn html_of(md: &str, title: &str) -> String {
+pub(crate) fn html_of(md: &str, title: &str) -> String {
     let mut h = format!(
         "<!doctype html><html><head><meta charset=\"utf-8\"><title>{title}</title><style>\
          body{{font-family:sans-serif;max-width:1200px;margin:2em auto}}table{{border-collapse:collapse}}\

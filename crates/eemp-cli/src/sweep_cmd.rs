@@ -27,6 +27,10 @@ pub struct SweepArgs {
     /// Worker threads (default: every core).
     #[arg(long)]
     pub threads: Option<usize>,
+    /// The same study at a small scale, to check a pipeline (`eemp reproduce --quick`): the
+    /// ends of the speed and swing-time axes, the first value of the others, one seed, 3 s runs.
+    #[arg(long)]
+    pub quick: bool,
 }
 
 #[derive(clap::Subcommand, Debug)]
@@ -97,7 +101,10 @@ fn sweep(args: &SweepArgs) -> Result<(), String> {
     if args.threads == Some(0) {
         return Err("--threads 0 is out of range: allowed 1 or more".into());
     }
-    let config = SweepConfig::load(config_path).map_err(|e| e.to_string())?;
+    let mut config = SweepConfig::load(config_path).map_err(|e| e.to_string())?;
+    if args.quick {
+        config = config.quick();
+    }
     let options = SweepOptions {
         threads: args.threads,
         shard,
@@ -222,6 +229,7 @@ mod tests {
             out: Some(out.clone()),
             shard: shard.map(String::from),
             threads,
+            quick: false,
         };
         let cases = [
             (

@@ -312,6 +312,33 @@ pub struct SweepConfig {
 }
 
 impl SweepConfig {
+    /// The same study at `--quick` scale, to check a pipeline end to end (not a result): the
+    /// slowest and the fastest speed, the shortest and the longest swing time, the first value
+    /// of every other axis, the first seed, runs of at most 3 s.
+    pub fn quick(&self) -> SweepConfig {
+        let ends = |v: &[f64]| -> Vec<f64> {
+            let mut e = vec![v[0], v[v.len() - 1]];
+            e.dedup();
+            e
+        };
+        let first = |v: &[f64]| vec![v[0]];
+        let g = &self.grid;
+        SweepConfig {
+            grid: Grid {
+                speed_mps: ends(&g.speed_mps),
+                swing_time_s: ends(&g.swing_time_s),
+                step_height_m: first(&g.step_height_m),
+                body_height_m: first(&g.body_height_m),
+                ellipse_rx_m: first(&g.ellipse_rx_m),
+                ellipse_ry_m: first(&g.ellipse_ry_m),
+                duration_s: g.duration_s.min(3.0),
+                seeds: vec![g.seeds[0]],
+                ..g.clone()
+            },
+            selection: self.selection,
+        }
+    }
+
     /// Reads and validates a sweep file; errors name the file and the key.
     pub fn load(path: &Path) -> Result<Self, StudyError> {
         let text = std::fs::read_to_string(path).map_err(|e| StudyError::read(path, e))?;
@@ -805,6 +832,20 @@ seeds = [1, 0]
         assert_eq!(g.point_count(), 2 * 2 * 4 * 3);
         assert_eq!(g.run_count(), 2 * 2 * 4 * 3 * 2);
         assert_eq!(c.selection, SelectionConfig::default());
+    }
+
+    #[test]
+    fn the_quick_study_keeps_the_ends_of_speed_and_swing_time_and_one_of_the_rest() {
+        let q = parse(GOOD).unwrap().quick();
+        let g = &q.grid;
+        assert_eq!(g.gaits, vec![Gait::Trot, Gait::Walk]);
+        assert_eq!(g.speed_mps, vec![0.1, 0.5]);
+        assert_eq!(g.swing_time_s, vec![0.1, 0.25]);
+        assert_eq!(g.ellipse_rx_m, vec![0.01]);
+        assert_eq!(g.seeds, vec![0]);
+        assert_eq!(g.run_count(), 2 * 2 * 2);
+        let one_speed = parse(&GOOD.replace("[0.5, 0.1]", "[0.3]")).unwrap().quick();
+        assert_eq!(one_speed.grid.speed_mps, vec![0.3]);
     }
 
     #[test]

@@ -9,12 +9,14 @@
 //! - [`runner`]: running the missing runs (MuJoCo via `eemp-sim`, or any closure);
 //! - [`merge`]: combining shard folders;
 //! - [`select`]: seed averages, per-speed choice, best constants, instability;
-//! - [`report`]: table files and the Markdown/HTML report (figures come from the caller).
+//! - [`report`]: table files and the Markdown/HTML report (figures come from the caller);
+//! - [`pipeline`]: `reproduce.toml`'s stages and the manifests of what made each artifact.
 
 pub mod config;
 pub mod error;
 pub mod grid;
 pub mod merge;
+pub mod pipeline;
 pub mod report;
 pub mod runner;
 pub mod select;

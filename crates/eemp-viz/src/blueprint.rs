@@ -19,8 +19,12 @@ pub fn default_layout(run: &RunView) -> Blueprint {
             "/plots/velocity",
         ),
         series(
-            "CoT (eq. 8) and manipulability (eq. 9) so far",
-            "/plots/efficiency",
+            "CoT so far (eq. 8, plotted after 0.2 m)",
+            "/plots/efficiency/cot",
+        ),
+        series(
+            "manipulability so far (eq. 9)",
+            "/plots/efficiency/manipulability",
         ),
         Tabs::new([
             series("joint torques (N·m)", "/plots/torque"),
@@ -34,8 +38,11 @@ pub fn default_layout(run: &RunView) -> Blueprint {
         ])
         .into(),
     ]);
-    Blueprint::new(Horizontal::new([scene, plots.into()]).with_column_shares([0.6, 0.4]))
-        .with_time_panel(TimePanel::new().with_timeline(crate::writer::TIMELINE))
+    Blueprint::new(
+        Horizontal::new([scene, plots.with_row_shares([0.3, 0.15, 0.15, 0.4]).into()])
+            .with_column_shares([0.6, 0.4]),
+    )
+    .with_time_panel(TimePanel::new().with_timeline(crate::writer::TIMELINE))
 }
 
 /// Static names and colours of the plotted series, so legends read in words and units.

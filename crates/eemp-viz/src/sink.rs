@@ -12,6 +12,9 @@ use nalgebra::Vector3;
 use std::sync::mpsc::{self, Receiver, SyncSender, TrySendError};
 use std::time::Duration;
 
+/// The path the trunk has covered before the CoT so far is plotted [m].
+pub const MIN_COT_PATH_M: f64 = 0.2;
+
 /// How long [`RerunSink::finish`] waits for the recorder to write out what is queued.
 const FINISH_TIMEOUT: Duration = Duration::from_secs(20);
 
@@ -207,7 +210,11 @@ impl RerunSink {
                 torques_nm: record.output.torques,
                 geometry: geometry.cloned(),
                 mpc: self.mpc,
-                cot_so_far: so_far.cot,
+                // Over the first centimetres the CoT is energy over almost no distance: it
+                // would set the plot's scale at hundreds and hide the run.
+                cot_so_far: so_far
+                    .cot
+                    .filter(|_| so_far.path_length_m >= MIN_COT_PATH_M),
                 manipulability_so_far: so_far.manipulability,
             };
             if self.send(Message::Frame(Box::new(frame))) {

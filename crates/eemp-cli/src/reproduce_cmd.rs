@@ -1,0 +1,401 @@
+//! `eemp reproduce`: the whole study from `reproduce.toml`, stage by stage (each resumable,
+//! skipped when its manifest says it is up to date), and `--check` of the shipped artifacts.
+
+use eemp_study::pipeline::{
+    check_stage, hash_all, parse_shard, Action, Manifest, Pipeline, Stage, StageCheck,
+};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+#[derive(clap::Args, Debug)]
+#[command(
+    after_help = "Stages, their inputs, outputs and commands: reproduce.toml (docs/reproduce.md). \
+                        Kill and run again to resume: every stage's commands keep their finished work."
+)]
+pub struct ReproduceArgs {
+    /// The root to (re)generate, laid out as the repository: `.` regenerates the shipped
+    /// artifacts in place; a new folder gets a copy of the configs first.
+    #[arg(long, required_unless_present_any = ["check", "list", "record", "write_report"])]
+    pub out: Option<PathBuf>,
+    /// Only these stages (repeatable), in pipeline order; artifacts of earlier stages they read
+    /// are copied from the repository when the root has none.
+    #[arg(long = "stage", value_name = "NAME")]
+    pub stages: Vec<String>,
+    /// The same pipeline at a small scale (short sweeps and trainings, one seed, short runs):
+    /// checks that it works end to end; its manifests say `quick = true`.
+    #[arg(long)]
+    pub quick: bool,
+    /// Run only the K-th of N slices of the shardable stages' long steps (sweeps), into
+    /// `out/reproduce/<stage>/shard-K-of-N`; merge with `eemp sweep merge`, then run the stage.
+    #[arg(long, value_name = "K/N")]
+    pub shard: Option<String>,
+    /// List the artifacts whose inputs changed since their manifest (in --out, default `.`) and
+    /// exit with status 1 if any did (`--record` and `--check` work on `.` without --out).
+    #[arg(long)]
+    pub check: bool,
+    /// With --check: a change of the code that made an artifact counts too.
+    #[arg(long, requires = "check")]
+    pub strict: bool,
+    /// Run the selected stages even when they are up to date.
+    #[arg(long, conflicts_with = "check")]
+    pub force: bool,
+    /// List the stages and what they make.
+    #[arg(long, conflicts_with = "check")]
+    pub list: bool,
+    /// Write manifests for artifacts already made by the stages' commands (by hand), from the
+    /// inputs as they are now (`made_by = "recorded"`, no code version): for adopting them.
+    #[arg(long, conflicts_with_all = ["check", "force", "quick", "shard"])]
+    pub record: bool,
+    /// Write reports/paper (report.md, report.html, figures/) in the root from the stages'
+    /// reports and manifests: the pipeline's last stage.
+    #[arg(long, conflicts_with_all = ["check", "force", "quick", "shard", "record", "list"])]
+    pub write_report: bool,
+    /// The pipeline file.
+    #[arg(long, default_value = "reproduce.toml")]
+    pub pipeline: PathBuf,
+}
+
+/// `Ok(false)`: `--check` found stale artifacts (exit status 1).
+pub fn run(args: &ReproduceArgs) -> Result<bool, String> {
+    let pipeline = Pipeline::load(&args.pipeline).map_err(|e| e.to_string())?;
+    let repo = args
+        .pipeline
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."))
+        .to_path_buf();
+    let stages = pipeline.select(&args.stages).map_err(|e| e.to_string())?;
+    let shard = args.shard.as_deref().map(parse_shard).transpose()?;
+    if args.list {
+        list(&pipeline, &stages);
+        return Ok(true);
+    }
+    let root = args.out.clone().unwrap_or_else(|| PathBuf::from("."));
+    if args.check {
+        return check(&root, &repo, &stages, args.strict);
+    }
+    if args.write_report {
+        let written = crate::paper_report::write(&root, &pipeline, &root.join("reports/paper"))?;
+        println!("wrote {}", written.join(", "));
+        return Ok(true);
+    }
+    if args.record {
+        return record(&root, &repo, &stages).map(|_| true);
+    }
+    if let Some((k, n)) = shard {
+        if !stages.iter().any(|s| s.shardable()) {
+            return Err(format!(
+                "--shard {k}/{n}: none of the selected stages is shardable (shardable: {})",
+                names(pipeline.stages.iter().filter(|s| s.shardable()))
+            ));
+        }
+    }
+    prepare_root(&root, &repo, &pipeline, &stages)?;
+    let mut timings = Vec::new();
+    for stage in &stages {
+        if let Some((k, n)) = shard {
+            if !stage.shardable() {
+                println!("[{}] not shardable: skipped under --shard", stage.name);
+                continue;
+            }
+            run_actions(&root, stage, &stage.actions(args.quick, Some((k, n))))?;
+            println!(
+                "[{}] shard {k}/{n} done; merge the shards (eemp sweep merge …) into {} and run \
+                 this stage without --shard",
+                stage.name,
+                stage.work_dir()
+            );
+            continue;
+        }
+        let state = check_stage(&root, &repo, stage, args.quick).map_err(|e| e.to_string())?;
+        if state.up_to_date(false) && !args.force {
+            println!(
+                "[{}] up to date (manifests/{}.toml)",
+                stage.name, stage.name
+            );
+            continue;
+        }
+        let t0 = Instant::now();
+        let actions = stage.actions(args.quick, None);
+        run_actions(&root, stage, &actions)?;
+        let wall_s = t0.elapsed().as_secs_f64();
+        write_manifest(&root, &repo, stage, &actions, args.quick, Some(wall_s))?;
+        println!("[{}] done in {:.0} s", stage.name, wall_s);
+        timings.push((stage.name.clone(), wall_s));
+    }
+    if !timings.is_empty() {
+        println!("\nstage wall times:");
+        for (n, s) in &timings {
+            println!("  {n:<24} {:>8.1} min", s / 60.0);
+        }
+    }
+    Ok(true)
+}
+
+fn names<'a>(stages: impl Iterator<Item = &'a Stage>) -> String {
+    stages
+        .map(|s| s.name.as_str())
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+fn list(pipeline: &Pipeline, stages: &[&Stage]) {
+    for s in stages {
+        let time = s
+            .minutes_2_cores
+            .map(|m| format!(" (≈ {m:.0} min on 2 cores)"))
+            .unwrap_or_default();
+        println!("{}{time}: {}", s.name, s.about);
+        for a in s.actions(false, None) {
+            println!("    {}", a.display());
+        }
+        println!("    makes: {}", s.outputs.join(", "));
+    }
+    let total: f64 = pipeline
+        .stages
+        .iter()
+        .filter_map(|s| s.minutes_2_cores)
+        .sum();
+    println!("all stages: ≈ {:.1} h on 2 cores", total / 60.0);
+}
+
+fn check(root: &Path, repo: &Path, stages: &[&Stage], strict: bool) -> Result<bool, String> {
+    let mut stale = 0;
+    for s in stages {
+        let c: StageCheck = check_stage(root, repo, s, false).map_err(|e| e.to_string())?;
+        let made = c
+            .manifest
+            .as_ref()
+            .map(|m| format!(" ({})", m.made_by))
+            .unwrap_or_default();
+        if c.up_to_date(strict) {
+            println!("ok     {}{made}: {}", s.name, s.outputs.join(", "));
+        } else {
+            stale += 1;
+            println!("STALE  {}{made}: {}", s.name, s.outputs.join(", "));
+            for why in &c.stale {
+                println!("         {why}");
+            }
+        }
+        if !c.code_changed.is_empty() {
+            println!(
+                "         note: code changed since: {} ({})",
+                c.code_changed.join(", "),
+                if strict {
+                    "counted: --strict"
+                } else {
+                    "not counted without --strict"
+                }
+            );
+        }
+        if c.manifest.as_ref().is_some_and(|m| m.code.is_empty()) {
+            println!("         note: recorded, the code version that made it is unknown");
+        }
+    }
+    if stale > 0 {
+        println!(
+            "\n{stale} of {} stage(s) stale: eemp reproduce --out {} --stage NAME regenerates one",
+            stages.len(),
+            root.display()
+        );
+    } else {
+        println!(
+            "\nevery artifact of the {} stage(s) matches its inputs",
+            stages.len()
+        );
+    }
+    Ok(stale == 0)
+}
+
+fn record(root: &Path, repo: &Path, stages: &[&Stage]) -> Result<(), String> {
+    for s in stages {
+        let missing: Vec<&String> = s
+            .outputs
+            .iter()
+            .filter(|o| !root.join(o).exists())
+            .collect();
+        if !missing.is_empty() {
+            return Err(format!(
+                "stage '{}': cannot record, {} not made yet",
+                s.name,
+                missing
+                    .iter()
+                    .map(|m| m.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ));
+        }
+    }
+    for s in stages {
+        let actions = s.actions(false, None);
+        let mut m = manifest(root, repo, s, &actions, false, None)?;
+        m.made_by = "recorded".into();
+        m.code.clear();
+        m.save(root).map_err(|e| e.to_string())?;
+        println!("recorded manifests/{}.toml", s.name);
+    }
+    Ok(())
+}
+
+/// A new root gets the pipeline's sources, and the artifacts of unselected stages that the
+/// selected ones read; nothing already in the root is overwritten. Everything is checked before
+/// the root is touched.
+fn prepare_root(
+    root: &Path,
+    repo: &Path,
+    pipeline: &Pipeline,
+    stages: &[&Stage],
+) -> Result<(), String> {
+    let same =
+        root.exists() && std::fs::canonicalize(root).ok() == std::fs::canonicalize(repo).ok();
+    let mut copies: Vec<(String, Option<String>)> = Vec::new();
+    if !same {
+        for src in &pipeline.sources {
+            if !repo.join(src).exists() {
+                return Err(format!(
+                    "the pipeline's source {src} is missing in {}",
+                    repo.display()
+                ));
+            }
+            copies.push((src.clone(), None));
+        }
+    }
+    for s in stages {
+        for input in &s.inputs {
+            let made_by_selected = pipeline
+                .maker_of(input)
+                .is_some_and(|m| stages.iter().any(|t| t.name == m.name));
+            let from_sources = pipeline
+                .sources
+                .iter()
+                .any(|src| input == src || input.starts_with(&format!("{src}/")));
+            if made_by_selected || root.join(input).exists() || (!same && from_sources) {
+                continue;
+            }
+            if same || !repo.join(input).exists() {
+                return Err(format!(
+                    "stage '{}' reads {input}, which neither {} nor the repository has{}",
+                    s.name,
+                    root.display(),
+                    pipeline
+                        .maker_of(input)
+                        .map(|m| format!(" (stage '{}' makes it)", m.name))
+                        .unwrap_or_default()
+                ));
+            }
+            copies.push((input.clone(), Some(s.name.clone())));
+        }
+    }
+    std::fs::create_dir_all(root).map_err(|e| format!("cannot create {}: {e}", root.display()))?;
+    for (path, for_stage) in copies {
+        copy_missing(&repo.join(&path), &root.join(&path))?;
+        if let Some(stage) = for_stage {
+            println!("[{stage}] using the shipped {path}");
+        }
+    }
+    Ok(())
+}
+
+fn copy_missing(from: &Path, to: &Path) -> Result<(), String> {
+    if from.is_dir() {
+        for e in std::fs::read_dir(from).map_err(|e| format!("{}: {e}", from.display()))? {
+            let e = e.map_err(|e| format!("{}: {e}", from.display()))?;
+            copy_missing(&e.path(), &to.join(e.file_name()))?;
+        }
+        Ok(())
+    } else if from.is_file() {
+        if to.exists() {
+            return Ok(());
+        }
+        std::fs::create_dir_all(to.parent().expect("has a parent"))
+            .and_then(|_| std::fs::copy(from, to).map(|_| ()))
+            .map_err(|e| format!("cannot copy {} to {}: {e}", from.display(), to.display()))
+    } else {
+        Err(format!("{} does not exist", from.display()))
+    }
+}
+
+fn replace_with_copy(from: &Path, to: &Path) -> Result<(), String> {
+    if !from.exists() {
+        return Err(format!("{} was not written", from.display()));
+    }
+    if to.is_dir() {
+        std::fs::remove_dir_all(to).map_err(|e| format!("{}: {e}", to.display()))?;
+    } else if to.exists() {
+        std::fs::remove_file(to).map_err(|e| format!("{}: {e}", to.display()))?;
+    }
+    copy_missing(from, to)
+}
+
+fn run_actions(root: &Path, stage: &Stage, actions: &[Action]) -> Result<(), String> {
+    let exe = std::env::current_exe().map_err(|e| format!("cannot find eemp itself: {e}"))?;
+    for a in actions {
+        println!("[{}] {}", stage.name, a.display());
+        match a {
+            Action::Eemp(args) => {
+                let status = std::process::Command::new(&exe)
+                    .args(args)
+                    .current_dir(root)
+                    .status()
+                    .map_err(|e| {
+                        format!("stage '{}': cannot run {}: {e}", stage.name, a.display())
+                    })?;
+                if !status.success() {
+                    return Err(format!(
+                        "stage '{}': `{}` failed ({status}); its finished work is kept, run again \
+                         to resume",
+                        stage.name,
+                        a.display()
+                    ));
+                }
+            }
+            Action::Copy { from, to } => replace_with_copy(&root.join(from), &root.join(to))
+                .map_err(|e| format!("stage '{}': {e}", stage.name))?,
+        }
+    }
+    Ok(())
+}
+
+fn manifest(
+    root: &Path,
+    repo: &Path,
+    stage: &Stage,
+    actions: &[Action],
+    quick: bool,
+    wall_s: Option<f64>,
+) -> Result<Manifest, String> {
+    let present = |what: &str, m: BTreeMap<String, Option<String>>| {
+        m.into_iter()
+            .map(|(p, h)| {
+                h.map(|h| (p.clone(), h))
+                    .ok_or_else(|| format!("stage '{}': {what} {p} is missing", stage.name))
+            })
+            .collect::<Result<BTreeMap<_, _>, String>>()
+    };
+    let e = |e: eemp_study::pipeline::PipelineError| e.to_string();
+    Ok(Manifest {
+        stage: stage.name.clone(),
+        made_by: "eemp reproduce".into(),
+        quick,
+        eemp_version: env!("CARGO_PKG_VERSION").into(),
+        commands: actions.iter().map(Action::display).collect(),
+        wall_s,
+        inputs: present("input", hash_all(root, &stage.inputs).map_err(e)?)?,
+        code: present("code folder", hash_all(repo, &stage.code).map_err(e)?)?,
+        outputs: present("output", hash_all(root, &stage.outputs).map_err(e)?)?,
+    })
+}
+
+fn write_manifest(
+    root: &Path,
+    repo: &Path,
+    stage: &Stage,
+    actions: &[Action],
+    quick: bool,
+    wall_s: Option<f64>,
+) -> Result<(), String> {
+    manifest(root, repo, stage, actions, quick, wall_s)?
+        .save(root)
+        .map_err(|e| e.to_string())
+}

@@ -1,0 +1,198 @@
+//! `eemp reproduce`: the pipeline file names every file its stages read, `--check` passes on the
+//! shipped artifacts and fails when a shipped table's sweep config is edited, bad input exits 2.
+
+use eemp_study::pipeline::{Action, Pipeline};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn repo() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+fn eemp(dir: &Path, args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_eemp"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .unwrap()
+}
+
+/// Every path-like string value in a TOML file (tables, policies, motions, robots).
+fn referenced_files(path: &Path) -> Vec<String> {
+    fn walk(v: &toml::Value, out: &mut Vec<String>) {
+        match v {
+            toml::Value::String(s)
+                if ["tables/", "policies/", "motions/", "robots/", "profiles/"]
+                    .iter()
+                    .any(|p| s.starts_with(p)) =>
+            {
+                out.push(s.clone())
+            }
+            toml::Value::Array(a) => a.iter().for_each(|x| walk(x, out)),
+            toml::Value::Table(t) => t.values().for_each(|x| walk(x, out)),
+            _ => {}
+        }
+    }
+    let v: toml::Value = toml::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    let mut out = Vec::new();
+    walk(&v, &mut out);
+    out
+}
+
+#[test]
+fn every_file_a_stage_reads_is_one_of_its_inputs() {
+    let p = Pipeline::load(&repo().join("reproduce.toml")).unwrap();
+    let mut checked = 0;
+    for s in &p.stages {
+        for a in s.actions(false, None) {
+            let Action::Eemp(args) = a else { continue };
+            let Some(i) = args.iter().position(|a| a == "--config") else {
+                continue;
+            };
+            let config = &args[i + 1];
+            assert!(
+                s.inputs.contains(config),
+                "{}: {config} not an input",
+                s.name
+            );
+            for f in referenced_files(&repo().join(config)) {
+                let covered = s
+                    .inputs
+                    .iter()
+                    .any(|i| &f == i || f.starts_with(&format!("{i}/")));
+                // A suite's robot comes from --robot; a robot file a robot file names is its own.
+                let robot_of_suite = f.starts_with("robots/") && args.contains(&f);
+                assert!(
+                    covered || robot_of_suite,
+                    "stage '{}' reads {f} (named in {config}) but does not list it as an input",
+                    s.name
+                );
+                assert!(
+                    repo().join(&f).exists(),
+                    "{config} names {f}, which is missing"
+                );
+                checked += 1;
+            }
+        }
+    }
+    assert!(checked > 30, "{checked}");
+}
+
+fn copy_tree(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap() {
+        let e = e.unwrap();
+        let target = to.join(e.file_name());
+        if e.path().is_dir() {
+            copy_tree(&e.path(), &target);
+        } else {
+            std::fs::copy(e.path(), &target).unwrap();
+        }
+    }
+}
+
+#[test]
+fn check_passes_on_the_shipped_artifacts_and_fails_when_a_sweep_config_changes() {
+    let o = eemp(&repo(), &["reproduce", "--check"]);
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        o.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(stdout.contains("ok     sweep-a1"), "{stdout}");
+
+    // The same on a copy, with the A1 sweep's config edited: its stage is stale, exit 1.
+    let d = tempfile::tempdir().unwrap();
+    let root = d.path();
+    let p = Pipeline::load(&repo().join("reproduce.toml")).unwrap();
+    std::fs::copy(repo().join("reproduce.toml"), root.join("reproduce.toml")).unwrap();
+    copy_tree(&repo().join("manifests"), &root.join("manifests"));
+    let stage = p.stage("sweep-a1").unwrap();
+    for f in stage.inputs.iter().chain(&stage.outputs) {
+        let (from, to) = (repo().join(f), root.join(f));
+        if from.is_dir() {
+            copy_tree(&from, &to);
+        } else {
+            std::fs::create_dir_all(to.parent().unwrap()).unwrap();
+            std::fs::copy(&from, &to).unwrap();
+        }
+    }
+    let check = |root: &Path| eemp(root, &["reproduce", "--check", "--stage", "sweep-a1"]);
+    assert!(check(root).status.success());
+    let cfg = root.join("sweeps/paper.toml");
+    let text = std::fs::read_to_string(&cfg).unwrap();
+    std::fs::write(&cfg, text.replace("seeds = [0]", "seeds = [0, 1]")).unwrap();
+    let o = check(root);
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert_eq!(o.status.code(), Some(1), "{stdout}");
+    assert!(stdout.contains("STALE  sweep-a1"), "{stdout}");
+    assert!(
+        stdout.contains("input sweeps/paper.toml changed since"),
+        "{stdout}"
+    );
+}
+
+#[test]
+fn bad_input_names_the_stage_shard_or_file_and_writes_nothing() {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("out");
+    let outs = out.to_str().unwrap();
+    for (args, says) in [
+        (
+            vec!["reproduce", "--out", outs, "--stage", "sweeps"],
+            "unknown stage 'sweeps'",
+        ),
+        (
+            vec!["reproduce", "--out", outs, "--shard", "4/3"],
+            "--shard '4/3': expected K/N with 1 ≤ K ≤ N",
+        ),
+        (
+            vec![
+                "reproduce",
+                "--out",
+                outs,
+                "--stage",
+                "compare",
+                "--shard",
+                "1/2",
+            ],
+            "none of the selected stages is shardable",
+        ),
+    ] {
+        let o = eemp(&repo(), &args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(says), "{args:?}: {err}");
+        assert!(!out.exists(), "{args:?}: nothing written");
+    }
+    // A manifest that does not parse, and a stage whose inputs are missing.
+    let root = d.path().join("root");
+    std::fs::create_dir_all(root.join("manifests")).unwrap();
+    std::fs::copy(repo().join("reproduce.toml"), root.join("reproduce.toml")).unwrap();
+    std::fs::write(root.join("manifests/teleop.toml"), "stage = [").unwrap();
+    let o = eemp(&root, &["reproduce", "--check", "--stage", "teleop"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("manifests/teleop.toml: not a manifest"),
+        "{err}"
+    );
+    std::fs::write(
+        root.join("lonely.toml"),
+        "sources = []\n[[stage]]\nname = \"s\"\nabout = \"a\"\ninputs = [\"tables/none.toml\"]\n\
+         outputs = [\"reports/x\"]\n[[stage.step]]\nrun = [\"model\"]\n",
+    )
+    .unwrap();
+    let o = eemp(
+        &root,
+        &["reproduce", "--pipeline", "lonely.toml", "--out", outs],
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("stage 's' reads tables/none.toml, which neither"),
+        "{err}"
+    );
+    assert!(!out.exists(), "nothing written");
+}
