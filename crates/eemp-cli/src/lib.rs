@@ -2,7 +2,9 @@
 pub mod bench;
 pub mod bench_estimator;
 pub mod bench_rl;
+pub mod bench_viewer;
 pub mod hw_cmd;
+pub mod mpc_arg;
 pub mod output;
 pub mod paper_report;
 pub mod plots;
@@ -21,3 +23,4 @@ pub mod teleop_cmd;
 pub mod train_cmd;
 pub mod video;
 pub mod walk_cmd;
+pub mod walk_outputs;

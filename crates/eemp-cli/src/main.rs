@@ -73,6 +73,16 @@ enum BenchCommand {
         #[arg(long, default_value_t = eemp_core::convex_mpc::MpcConfig::default().horizon)]
         horizon: usize,
     },
+    /// What the Rerun recorder costs a walk (a build with `--features rerun`): real-time factor
+    /// without it, recording to a file, and streaming to a viewer that never answers.
+    Viewer {
+        /// Simulated seconds per walk, [1, 600].
+        #[arg(long, default_value_t = 10.0)]
+        duration: f64,
+        /// Interleaved rounds (best of each case).
+        #[arg(long, default_value_t = 3)]
+        rounds: usize,
+    },
     /// Time one Kalman-filter update against a bare MuJoCo step, in one run.
     Estimator {
         #[arg(long, default_value_t = 20000)]
@@ -156,6 +166,21 @@ fn main() {
         })
         .map(|r| {
             println!("{}", r.table());
+            println!("{}", r.json_line());
+        }),
+        Command::Bench {
+            what: BenchCommand::Viewer { duration, rounds },
+        } => eemp_cli::bench_viewer::bench_viewer(duration, rounds).map(|r| {
+            println!(
+                "real-time factor, best of {rounds}: no recorder {:.1}x, to a file {:.1}x ({:.2}), \
+                 to a viewer that never answers {:.1}x ({:.2}, {} frames dropped)",
+                r.rtf[0],
+                r.rtf[1],
+                r.rtf[1] / r.rtf[0],
+                r.rtf[2],
+                r.rtf[2] / r.rtf[0],
+                r.dropped_stuck
+            );
             println!("{}", r.json_line());
         }),
         Command::Bench {

@@ -1,8 +1,12 @@
 //! `eemp replay DIR --video FILE` / `--rerun FILE.rrd`: a video or a Rerun recording of a
 //! finished walk from its `trace.csv` (trunk pose, joints, torques, feet per row; traces from
-//! before the joint columns cannot be replayed). A trace holds no planner geometry, forces or
-//! estimate: the recording of a replay shows the robot, its touchdowns and the time series;
-//! record the walk itself (`eemp walk --rerun`) for ellipses, footholds and forces.
+//! before the joint columns cannot be replayed).
+//!
+//! A trace holds no planner geometry, forces or estimate, but a walk is deterministic and its
+//! `summary.json` keeps its command line: `--rerun` first simulates the walk again and, when the
+//! new trace equals `trace.csv` byte for byte, records that same run with everything (ellipses,
+//! footholds, forces). Otherwise (another code version, moved files, `--from-trace`) it records
+//! what the trace holds: the robot, its touchdowns and the time series.
 
 use crate::video::{write_gif, VideoFrame, FPS};
 use eemp_core::body_state::{BodyState, LegJointState, RobotState};
@@ -24,6 +28,9 @@ pub struct ReplayArgs {
     pub robot: Option<PathBuf>,
     #[command(flatten)]
     pub rerun: crate::rerun_arg::RerunArgs,
+    /// Record from the trace only, without simulating the walk again (no planner geometry).
+    #[arg(long)]
+    pub from_trace: bool,
 }
 
 /// One trace row as the closed loop would have shown it.
@@ -41,6 +48,13 @@ pub fn run(args: &ReplayArgs) -> Result<(), String> {
     }
     let robot = crate::robot_arg::load_robot(args.robot.as_deref())?;
     let trace = args.dir.join("trace.csv");
+    let mut rerun_done = false;
+    if args.rerun.wanted() && !args.from_trace {
+        match resimulate(args, &trace)? {
+            Ok(()) => rerun_done = true,
+            Err(why) => eprintln!("note: {why}; recording what the trace holds"),
+        }
+    }
     let mut rd = csv::Reader::from_path(&trace)
         .map_err(|e| format!("cannot read {}: {e}", trace.display()))?;
     let header = rd
@@ -124,7 +138,7 @@ pub fn run(args: &ReplayArgs) -> Result<(), String> {
                 })
         };
         let t = v(base[0])?;
-        if args.rerun.wanted() {
+        if args.rerun.wanted() && !rerun_done {
             let mut joints = LegMap::splat(LegJointState::default());
             let (mut torques, mut feet_world) = (
                 LegMap::splat(Vector3::zeros()),
@@ -187,7 +201,7 @@ pub fn run(args: &ReplayArgs) -> Result<(), String> {
             measured: [v(vel[0])?, v(vel[1])?],
         });
     }
-    if frames.is_empty() && rows.is_empty() {
+    if frames.is_empty() && rows.is_empty() && !rerun_done {
         return Err(format!("{} holds no rows", trace.display()));
     }
     let label = summary["method"]
@@ -258,4 +272,149 @@ fn record(
         println!("recorded {} trace rows: {summary}", rows.len());
     }
     Ok(())
+}
+
+/// Options of a walk's command line that name its outputs (dropped when it runs again), with
+/// whether they take a value.
+const OUTPUT_OPTIONS: &[(&str, bool)] = &[
+    ("--out", true),
+    ("--video", true),
+    ("--rerun", true),
+    ("--rerun-connect", true),
+    ("--rerun-serve", true),
+    ("--rerun-hz", true),
+];
+
+/// The walk's arguments without its outputs.
+fn without_outputs(command: &[String]) -> Vec<String> {
+    let mut out = Vec::new();
+    let mut it = command.iter();
+    while let Some(a) = it.next() {
+        let name = a.split('=').next().unwrap_or(a);
+        match OUTPUT_OPTIONS.iter().find(|(o, _)| *o == name) {
+            Some((_, true)) if !a.contains('=') => {
+                it.next();
+            }
+            Some(_) => {}
+            None => out.push(a.clone()),
+        }
+    }
+    out
+}
+
+/// Simulates the walk of `args.dir` again from its `summary.json` command; when its trace
+/// equals the stored one, simulates it once more with the recorder. `Ok(Err(why))`: it cannot
+/// be re-simulated to the same run.
+fn resimulate(args: &ReplayArgs, trace: &std::path::Path) -> Result<Result<(), String>, String> {
+    let summary: serde_json::Value = match std::fs::read_to_string(args.dir.join("summary.json"))
+        .ok()
+        .and_then(|s| serde_json::from_str(&s).ok())
+    {
+        Some(v) => v,
+        None => {
+            return Ok(Err(format!(
+                "{}/summary.json cannot be read",
+                args.dir.display()
+            )))
+        }
+    };
+    let Some(command) = summary["command"].as_array().and_then(|a| {
+        a.iter()
+            .map(|v| v.as_str().map(String::from))
+            .collect::<Option<Vec<String>>>()
+    }) else {
+        return Ok(Err(
+            "summary.json has no command (a walk from before eemp kept it)".into(),
+        ));
+    };
+    if command.first().map(String::as_str) != Some("walk") {
+        return Ok(Err(format!(
+            "the run was `eemp {}`, not a walk",
+            command.join(" ")
+        )));
+    }
+    let cwd = summary["cwd"]
+        .as_str()
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from("."));
+    let stored =
+        std::fs::read(trace).map_err(|e| format!("cannot read {}: {e}", trace.display()))?;
+    let exe = std::env::current_exe().map_err(|e| format!("cannot find eemp itself: {e}"))?;
+    let tmp = std::env::temp_dir().join(format!("eemp-replay-{}", std::process::id()));
+    let walk = |out: &std::path::Path, extra: &[String]| -> Result<bool, String> {
+        let status = std::process::Command::new(&exe)
+            .args(without_outputs(&command))
+            .arg("--out")
+            .arg(out)
+            .args(extra)
+            .current_dir(&cwd)
+            .stdout(std::process::Stdio::null())
+            .status()
+            .map_err(|e| format!("cannot run the walk again: {e}"))?;
+        Ok(status.success())
+    };
+    let check_dir = tmp.join("check");
+    let same = walk(&check_dir, &[])?
+        && std::fs::read(check_dir.join("trace.csv")).ok().as_deref() == Some(&stored[..]);
+    if !same {
+        let _ = std::fs::remove_dir_all(&tmp);
+        return Ok(Err(format!(
+            "`eemp {}` (in {}) does not give the same trace again (another code version or \
+             moved inputs)",
+            command.join(" "),
+            cwd.display()
+        )));
+    }
+    let r = &args.rerun;
+    let mut extra = vec!["--rerun-hz".to_string(), r.rerun_hz.to_string()];
+    if let Some(f) = &r.rerun {
+        let abs = std::path::absolute(f).map_err(|e| format!("{}: {e}", f.display()))?;
+        extra.extend(["--rerun".into(), abs.display().to_string()]);
+    }
+    if let Some(a) = &r.rerun_connect {
+        extra.extend(["--rerun-connect".into(), a.clone()]);
+    }
+    if let Some(p) = r.rerun_serve {
+        extra.extend(["--rerun-serve".into(), p.to_string()]);
+    }
+    let ok = walk(&tmp.join("record"), &extra)?;
+    let _ = std::fs::remove_dir_all(&tmp);
+    if !ok {
+        return Err("the re-simulated walk could not be recorded".into());
+    }
+    println!(
+        "re-simulated `eemp {}`: the same trace byte for byte; recorded it with the planner's \
+         geometry",
+        without_outputs(&command).join(" ")
+    );
+    Ok(Ok(()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_walks_outputs_are_dropped_from_its_command() {
+        let c: Vec<String> = [
+            "walk",
+            "--speed",
+            "0.3",
+            "--out",
+            "o",
+            "--video=v.gif",
+            "--rerun",
+            "a.rrd",
+            "--gait",
+            "free",
+        ]
+        .map(String::from)
+        .to_vec();
+        assert_eq!(
+            without_outputs(&c),
+            ["walk", "--speed", "0.3", "--gait", "free"]
+                .map(String::from)
+                .to_vec()
+        );
+    }
 }

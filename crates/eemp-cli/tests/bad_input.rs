@@ -557,3 +557,46 @@ fn artifacts_of_another_robot_are_refused_naming_both_unless_allowed() {
     assert_eq!(summary["robot"]["name"], "go1");
     assert_eq!(summary["robot"]["allow_robot_mismatch"], true);
 }
+
+#[test]
+fn a_run_file_walks_as_its_options_would_and_a_bad_one_is_named() {
+    let dir = scratch("run-file");
+    let file = dir.join("run.toml");
+    std::fs::write(
+        &file,
+        "gait = \"walk\"\nspeed_mps = 0.2\nduration_s = 1.5\n",
+    )
+    .unwrap();
+    let summary = |d: &Path| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(d.join("out/summary.json")).unwrap()).unwrap()
+    };
+    let (code, err, _) = eemp(&dir, &["walk", "--run", file.to_str().unwrap()]);
+    assert_eq!(code, Some(0), "{err}");
+    let by_options = scratch("run-file-options");
+    let (code, err, _) = eemp(
+        &by_options,
+        &[
+            "walk",
+            "--gait",
+            "walk",
+            "--speed",
+            "0.2",
+            "--duration",
+            "1.5",
+        ],
+    );
+    assert_eq!(code, Some(0), "{err}");
+    for key in ["cot", "distance_m", "vel_rmse_mps", "steps_total"] {
+        assert_eq!(summary(&dir)[key], summary(&by_options)[key], "{key}");
+    }
+    let bad = scratch("run-file-bad");
+    let file = bad.join("run.toml");
+    std::fs::write(&file, "sped_mps = 1\n").unwrap();
+    let (code, err, wrote) = eemp(&bad, &["walk", "--run", file.to_str().unwrap()]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(
+        err.contains("unknown field `sped_mps`") && err.contains("run.toml"),
+        "{err}"
+    );
+    assert!(!wrote);
+}

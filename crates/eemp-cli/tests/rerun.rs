@@ -69,3 +69,57 @@ fn a_recording_that_cannot_be_made_stops_the_walk_before_it_starts() {
         assert!(!out.exists(), "{flag} {value}: nothing written");
     }
 }
+
+#[test]
+fn a_replay_simulates_the_walk_again_and_records_its_geometry_when_the_trace_matches() {
+    let dir = tempfile::tempdir().unwrap();
+    let walk = dir.path().join("walk");
+    let o = Command::new(env!("CARGO_BIN_EXE_eemp"))
+        .args([
+            "walk",
+            "--gait",
+            "free",
+            "--speed",
+            "0.3",
+            "--duration",
+            "1.5",
+        ])
+        .arg("--out")
+        .arg(&walk)
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let replay = |rrd: &str, extra: &[&str]| {
+        let o = Command::new(env!("CARGO_BIN_EXE_eemp"))
+            .arg("replay")
+            .arg(&walk)
+            .args(["--rerun", rrd, "--rerun-hz", "50"])
+            .args(extra)
+            .current_dir(dir.path())
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        (
+            String::from_utf8_lossy(&o.stdout).to_string(),
+            String::from_utf8_lossy(&o.stderr).to_string(),
+            std::fs::metadata(dir.path().join(rrd)).unwrap().len(),
+        )
+    };
+    let (out, _, full) = replay("full.rrd", &[]);
+    assert!(out.contains("the same trace byte for byte"), "{out}");
+    let (_, _, trace_only) = replay("trace.rrd", &["--from-trace"]);
+    assert!(
+        full > trace_only,
+        "geometry and forces: {full} vs {trace_only} bytes"
+    );
+    // A trace that is not what the walk gives: the replay says so and records the trace.
+    let t = walk.join("trace.csv");
+    let text = std::fs::read_to_string(&t).unwrap();
+    // The first row's last joint angle, one digit longer.
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    lines[1].push('1');
+    std::fs::write(&t, lines.join("\n") + "\n").unwrap();
+    let (_, err, _) = replay("edited.rrd", &[]);
+    assert!(err.contains("does not give the same trace again"), "{err}");
+}

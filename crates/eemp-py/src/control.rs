@@ -3,18 +3,15 @@
 
 use crate::envs::{lock, value_error};
 use eemp_core::body_state::{BodyState, LegJointState, RobotState};
-use eemp_core::config_error::load_toml;
 use eemp_core::control::{ControlInput, Controller};
 use eemp_core::controller::feet_world;
 use eemp_core::eemp_controller::EempController;
 use eemp_core::kinematics::LegKinematics;
 use eemp_core::leg::{Leg, LegMap};
-use eemp_core::planner::params_table::ParamsTable;
-use eemp_core::planner::{Gait, PlannerConfig, PlannerParams, VelocityCommand};
-use eemp_core::robot::RobotConfig;
+use eemp_core::planner::VelocityCommand;
+use eemp_rl::run::{Sensing, WalkDescription};
 use eemp_sim::backend::{build_model, Simulation};
-use eemp_sim::closed_loop::StateSource;
-use eemp_sim::walk::{eemp_controller, reset_to_start, run_walk, StartPose, WalkSpec};
+use eemp_sim::walk::{eemp_controller, reset_to_start, StartPose};
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 use numpy::{AllowTypeChange, PyArray1, PyArrayLike1};
 use pyo3::prelude::*;
@@ -96,33 +93,21 @@ fn flat(m: &LegMap<Vector3<f64>>) -> Vec<f64> {
         .collect()
 }
 
-fn walk_spec(
+/// The run description of an EEMP walk with these arguments: the one `eemp walk` fills, built
+/// (validated, the table checked against the robot) by the same code.
+fn eemp_walk(
     gait: &str,
     params: Option<PathBuf>,
     params_table: Option<PathBuf>,
-    command: VelocityCommand,
-    duration_s: f64,
-) -> PyResult<WalkSpec> {
-    let gait: Gait = gait.parse().map_err(value_error)?;
-    let params: PlannerParams = match &params {
-        Some(p) => load_toml(p).map_err(value_error)?,
-        None => PlannerParams::default(),
-    };
-    let table = match &params_table {
-        Some(p) => Some(ParamsTable::load(p).map_err(value_error)?),
-        None => None,
-    };
-    let planner = PlannerConfig {
-        gait,
-        progress_factor: table
-            .as_ref()
-            .and_then(|t| t.progress_factor)
-            .unwrap_or(PlannerConfig::default().progress_factor),
-        ..PlannerConfig::default()
-    };
-    let mut spec = WalkSpec::constant(planner, params, command, duration_s);
-    spec.params_table = table;
-    Ok(spec)
+    robot: Option<PathBuf>,
+) -> WalkDescription {
+    WalkDescription {
+        robot,
+        gait: gait.into(),
+        params,
+        params_table,
+        ..Default::default()
+    }
 }
 
 struct ControllerState {
@@ -149,9 +134,10 @@ impl PyEempController {
         params_table: Option<PathBuf>,
         robot: Option<PathBuf>,
     ) -> PyResult<Self> {
-        let robot = RobotConfig::load_or_a1(robot.as_deref()).map_err(value_error)?;
-        let spec = walk_spec(gait, params, params_table, VelocityCommand::default(), 1.0)?;
-        spec.validate().map_err(value_error)?;
+        let built = eemp_walk(gait, params, params_table, robot)
+            .build()
+            .map_err(value_error)?;
+        let (robot, spec) = (built.robot, built.spec);
         let controller = eemp_controller(&robot, &spec).map_err(value_error)?;
         let model = build_model(&robot, &Default::default())
             .and_then(|m| Simulation::with_model(m, &robot))
@@ -243,9 +229,11 @@ impl PyA1Sim {
     #[new]
     #[pyo3(signature = (gait = "trot", seed = 0))]
     fn new(gait: &str, seed: u64) -> PyResult<Self> {
-        let robot = RobotConfig::a1();
-        let spec = walk_spec(gait, None, None, VelocityCommand::default(), 1.0)?;
-        let start = StartPose::eemp(&robot, &spec).map_err(value_error)?;
+        let built = eemp_walk(gait, None, None, None)
+            .build()
+            .map_err(value_error)?;
+        let robot = built.robot;
+        let start = StartPose::eemp(&robot, &built.spec).map_err(value_error)?;
         let mut sim = Simulation::new(&robot, &Default::default()).map_err(value_error)?;
         reset_to_start(&mut sim, &start, seed);
         Ok(PyA1Sim {
@@ -311,32 +299,27 @@ pub fn walk_json(
     estimator: &str,
     robot: Option<PathBuf>,
 ) -> PyResult<String> {
-    let robot = RobotConfig::load_or_a1(robot.as_deref()).map_err(value_error)?;
+    // Python's names for the values Python users give.
     if !(duration_s.is_finite() && duration_s > 0.0 && duration_s <= 3600.0) {
         return Err(value_error(format!(
             "duration_s {duration_s} is out of range: allowed (0, 3600]"
         )));
     }
-    let command = VelocityCommand {
-        vx_mps: speed,
-        vy_mps: lateral,
+    let built = WalkDescription {
+        speed_mps: speed,
+        lateral_mps: lateral,
         yaw_rate_rps: yaw_rate,
-    };
-    let mut spec = walk_spec(gait, params, params_table, command, duration_s)?;
-    spec.seed = seed;
-    spec.state_source = match estimator {
-        "ground-truth" => StateSource::GroundTruth,
-        "kf" => StateSource::kf(&robot, eemp_sim::sensors::SensorNoise::default(), seed),
-        other => {
-            return Err(value_error(format!(
-                "unknown estimator '{other}': allowed ground-truth, kf"
-            )))
-        }
-    };
-    spec.validate().map_err(value_error)?;
-    let run = py
-        .detach(|| run_walk(&robot, &spec, |_| {}))
-        .map_err(value_error)?;
+        duration_s,
+        sensing: Sensing {
+            estimator: estimator.into(),
+            seed,
+            ..Default::default()
+        },
+        ..eemp_walk(gait, params, params_table, robot)
+    }
+    .build()
+    .map_err(value_error)?;
+    let run = py.detach(|| built.run(|_| {})).map_err(value_error)?;
     let (m, st) = (&run.metrics, &run.stats);
     Ok(serde_json::json!({
         "gait": gait,

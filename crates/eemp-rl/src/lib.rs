@@ -7,6 +7,7 @@
 //!   the PPO update, running observation normalisation.
 //! - [`cma_table`]: CMA-ES on EEMP-RL's residual (the second optimiser), a re-tuned table.
 //! - [`train`]: the training loop with `train.csv`, checkpoints and resume.
+//! - [`run`]: the one description of a walk by any controller, validated once and run.
 //! - [`policy`]: policy files; [`controller`]: a trained policy as a [`eemp_core::control::Controller`].
 
 // Time, env and parameter indices (t, e, i) are the algorithm's notation here.
@@ -23,6 +24,7 @@ pub mod nn;
 pub mod normalizer;
 pub mod policy;
 pub mod ppo;
+pub mod run;
 pub mod tasks;
 pub mod tensor_file;
 pub mod train;

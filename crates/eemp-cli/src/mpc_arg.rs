@@ -1,0 +1,30 @@
+//! `--mpc-friction`, `--mpc-horizon`, `--mpc-period`, `--adapt-friction`/`--no-adapt-friction`:
+//! the MPC's settings and slip handling of a walk.
+
+#[derive(clap::Args, Clone, Debug)]
+pub struct MpcArgs {
+    /// Friction coefficient the MPC assumes (its friction pyramid); keep it at or below the
+    /// floor's. Default: `MpcConfig`'s 0.6.
+    #[arg(long)]
+    pub mpc_friction: Option<f64>,
+    /// No slip handling (`eemp_core::slip`, on by default for the trot and the free gait: a
+    /// sliding stance foot lowers the MPC's friction coefficient, a holding one raises it).
+    #[arg(long, conflicts_with = "adapt_friction")]
+    pub no_adapt_friction: bool,
+    /// Slip handling on whatever the gait (the walk's default is off).
+    #[arg(long)]
+    pub adapt_friction: bool,
+    /// MPC horizon, steps of its dt (default: MpcConfig's 10).
+    #[arg(long)]
+    pub mpc_horizon: Option<usize>,
+    /// Time between MPC solves, s (a stance change also triggers a solve).
+    #[arg(long, default_value_t = eemp_core::controller::ControllerConfig::default().mpc_period_s)]
+    pub mpc_period: f64,
+}
+
+impl MpcArgs {
+    /// `Some(on)` when slip handling was asked for or against; `None`: the gait's default.
+    pub fn adapt_friction(&self) -> Option<bool> {
+        (self.adapt_friction || self.no_adapt_friction).then_some(self.adapt_friction)
+    }
+}

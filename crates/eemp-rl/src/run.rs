@@ -1,0 +1,535 @@
+//! The one description of a walk by any controller: robot, world, controller (EEMP with its
+//! parameters or table, or a trained policy), what it sees, the command and the duration.
+//! `eemp walk` fills it from its arguments, the Python package from keyword arguments, a run
+//! file from TOML; [`WalkDescription::build`] validates it once and assembles the run, and
+//! [`BuiltWalk::run`] drives it through the one closed loop. No command assembles a controller
+//! or a state source by hand.
+//!
+//! Error messages name the options as `eemp walk` spells them (`--duration`), the names a user
+//! of the command line and of a run file (whose keys are the fields) both find in `--help`.
+
+use crate::config::{TaskKind, TrainEstimator};
+use crate::policy::Policy;
+use eemp_core::config_error::load_toml;
+use eemp_core::estimator::KfConfig;
+use eemp_core::planner::params_table::ParamsTable;
+use eemp_core::planner::{FreePairing, Gait, PlannerConfig, PlannerParams, VelocityCommand};
+use eemp_core::robot::RobotConfig;
+use eemp_sim::closed_loop::{Push, StateSource, StepRecord};
+use eemp_sim::sensors::SensorNoise;
+use eemp_sim::walk::{run_walk, run_walk_with, StartPose, VelocityProfile, WalkRun, WalkSpec};
+use nalgebra::Vector3;
+use serde::{Deserialize, Serialize};
+use std::path::PathBuf;
+
+/// What the controller sees.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Sensing {
+    /// `ground-truth` (the simulator's state) or `kf` (the Kalman filter on the simulated IMU
+    /// and encoders).
+    pub estimator: String,
+    /// With `kf`: noise-free sensors without latency.
+    pub ideal_sensors: bool,
+    /// Seed of the sensor noise and of the start perturbation (0: start at rest).
+    pub seed: u64,
+    pub kf: KfOptions,
+}
+
+impl Default for Sensing {
+    fn default() -> Self {
+        Sensing {
+            estimator: "ground-truth".into(),
+            ideal_sensors: false,
+            seed: 0,
+            kf: KfOptions::default(),
+        }
+    }
+}
+
+impl Sensing {
+    pub fn source(&self, robot: &RobotConfig) -> Result<StateSource, String> {
+        let mut source = state_source(&self.estimator, self.ideal_sensors, self.seed, robot)?;
+        with_kf_options(
+            &mut source,
+            &self.kf,
+            ["--kf-velocity-jump", "--kf-leg-outlier"],
+        )?;
+        Ok(source)
+    }
+}
+
+/// Settings of the filter that a command or a suite method may override (`None`: the filter's
+/// default).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct KfOptions {
+    pub velocity_jump_mps: Option<f64>,
+    pub leg_outlier_mps: Option<f64>,
+}
+
+/// Applies `options` to the filter (`names` are the options' names, for the errors); refused
+/// out of the filter's range, or for a run on ground truth.
+pub fn with_kf_options(
+    source: &mut StateSource,
+    options: &KfOptions,
+    names: [&str; 2],
+) -> Result<(), String> {
+    let given = [options.velocity_jump_mps, options.leg_outlier_mps];
+    let Some(kf) = source.kf_config_mut() else {
+        return match names.iter().zip(given).find_map(|(n, v)| v.map(|v| (n, v))) {
+            Some((name, v)) => Err(format!("{name} {v} needs the kf estimator")),
+            None => Ok(()),
+        };
+    };
+    // One option at a time, each checked by the filter's own range and reported under the
+    // option's name.
+    let setters: [fn(&mut KfConfig, f64); 2] = [
+        |kf, v| kf.velocity_jump_mps = v,
+        |kf, v| kf.leg_outlier_mps = v,
+    ];
+    for ((value, name), set) in given.into_iter().zip(names).zip(setters) {
+        if let Some(v) = value {
+            set(kf, v);
+            kf.validate().map_err(|e| format!("{name}: {e}"))?;
+        }
+    }
+    Ok(())
+}
+
+/// `ground-truth` or `kf` (with A1-like sensor noise unless `ideal_sensors`).
+pub fn state_source(
+    name: &str,
+    ideal_sensors: bool,
+    seed: u64,
+    robot: &RobotConfig,
+) -> Result<StateSource, String> {
+    match name {
+        "ground-truth" => Ok(StateSource::GroundTruth),
+        "kf" => Ok(StateSource::kf(
+            robot,
+            if ideal_sensors {
+                SensorNoise::none()
+            } else {
+                SensorNoise::default()
+            },
+            seed,
+        )),
+        other => Err(format!(
+            "unknown estimator '{other}': allowed ground-truth, kf"
+        )),
+    }
+}
+
+/// A policy trained on the filter runs on the filter it was trained on (its config's `[kf]`),
+/// except for the settings `options` names.
+pub fn adopt_policy_filter(source: &mut StateSource, policy: &Policy, options: &KfOptions) {
+    if policy.config.estimator != TrainEstimator::Kf {
+        return;
+    }
+    if let Some(kf) = source.kf_config_mut() {
+        let (jump, outlier) = (kf.velocity_jump_mps, kf.leg_outlier_mps);
+        policy.config.kf.apply(kf);
+        // What the options set (already applied and validated) stays.
+        if options.velocity_jump_mps.is_some() {
+            kf.velocity_jump_mps = jump;
+        }
+        if options.leg_outlier_mps.is_some() {
+            kf.leg_outlier_mps = outlier;
+        }
+    }
+}
+
+/// A walk, as files and values. Field names follow `eemp walk`'s options.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct WalkDescription {
+    /// The robot file (none: the shipped A1).
+    pub robot: Option<PathBuf>,
+    /// Run tables and policies made for another robot.
+    pub allow_robot_mismatch: bool,
+    /// `eemp`, `model-free`, `imitation` or `eemp-rl`.
+    pub controller: String,
+    /// The policy file of a learned controller.
+    pub policy: Option<PathBuf>,
+    pub sensing: Sensing,
+    /// `trot`, `walk` or `free` (EEMP).
+    pub gait: String,
+    pub speed_mps: f64,
+    pub lateral_mps: f64,
+    pub yaw_rate_rps: f64,
+    /// A velocity profile file in place of the constant command.
+    pub profile: Option<PathBuf>,
+    pub duration_s: f64,
+    /// Constant planner parameters (default: Table II).
+    pub params: Option<PathBuf>,
+    /// A per-speed parameter table in place of `params`.
+    pub params_table: Option<PathBuf>,
+    /// Eq. (6)'s factor (default: the table's, else the paper's 0.5).
+    pub progress_factor: Option<f64>,
+    pub retarget_swing: bool,
+    pub first_step_on_command: bool,
+    pub preview_swings: bool,
+    pub max_accel_mps2: f64,
+    /// A scenario file, applied over the rest.
+    pub scenario: Option<PathBuf>,
+    pub floor_friction: Option<f64>,
+    /// One lateral push: at this time [s], of `push_dv_mps`.
+    pub push_at_s: Option<f64>,
+    pub push_dv_mps: f64,
+    pub mpc_friction: Option<f64>,
+    pub mpc_horizon: Option<usize>,
+    pub mpc_period_s: f64,
+    /// `Some(false)`: no slip handling; `Some(true)`: on whatever the gait; `None`: the gait's
+    /// default.
+    pub adapt_friction: Option<bool>,
+    pub free_pair_tolerance: Option<f64>,
+    pub free_support_margin_m: Option<f64>,
+    pub free_unpaired: bool,
+}
+
+impl Default for WalkDescription {
+    fn default() -> Self {
+        let planner = PlannerConfig::default();
+        WalkDescription {
+            robot: None,
+            allow_robot_mismatch: false,
+            controller: "eemp".into(),
+            policy: None,
+            sensing: Sensing::default(),
+            gait: "trot".into(),
+            speed_mps: 0.3,
+            lateral_mps: 0.0,
+            yaw_rate_rps: 0.0,
+            profile: None,
+            duration_s: 20.0,
+            params: None,
+            params_table: None,
+            progress_factor: None,
+            retarget_swing: planner.retarget_swing,
+            first_step_on_command: planner.first_step_on_command,
+            preview_swings: planner.preview_swings,
+            max_accel_mps2: planner.max_accel_mps2,
+            scenario: None,
+            floor_friction: None,
+            push_at_s: None,
+            push_dv_mps: 0.3,
+            mpc_friction: None,
+            mpc_horizon: None,
+            mpc_period_s: eemp_core::controller::ControllerConfig::default().mpc_period_s,
+            adapt_friction: None,
+            free_pair_tolerance: None,
+            free_support_margin_m: None,
+            free_unpaired: false,
+        }
+    }
+}
+
+/// Which controller a walk runs.
+pub enum Driver {
+    Eemp,
+    /// A trained policy (model-free, imitation or EEMP-RL).
+    Policy(Box<Policy>),
+}
+
+/// A validated walk, ready to run.
+pub struct BuiltWalk {
+    pub robot: RobotConfig,
+    pub spec: WalkSpec,
+    pub driver: Driver,
+    pub gait: Gait,
+    /// The constant parameters given (`params`, or Table II).
+    pub params: PlannerParams,
+}
+
+impl WalkDescription {
+    /// Validates everything and assembles the run; an error names the option and its range.
+    pub fn build(&self) -> Result<BuiltWalk, String> {
+        let gait: Gait = self.gait.parse()?;
+        let is_eemp = self.controller == "eemp";
+        let driver = match (self.controller.as_str(), &self.policy) {
+            ("eemp", None) => Driver::Eemp,
+            ("eemp", Some(_)) => {
+                return Err(
+                    "--policy is for a learned --controller (model-free, imitation), not eemp"
+                        .into(),
+                )
+            }
+            (c @ ("model-free" | "imitation" | "eemp-rl"), Some(p)) => {
+                Driver::Policy(Box::new(Policy::load(p, Some(c.parse()?))?))
+            }
+            (c @ ("model-free" | "imitation" | "eemp-rl"), None) => {
+                return Err(format!(
+                    "--controller {c} needs --policy FILE (e.g. policies/a1_{}.safetensors)",
+                    c.replace('-', "_")
+                ))
+            }
+            (other, _) => {
+                return Err(format!(
+                    "unknown --controller '{other}': allowed eemp, model-free, imitation, eemp-rl"
+                ))
+            }
+        };
+        let free_flags = self.free_unpaired
+            || self.free_pair_tolerance.is_some()
+            || self.free_support_margin_m.is_some();
+        if free_flags && (!is_eemp || gait != Gait::Free) {
+            return Err(format!(
+                "--free-unpaired, --free-pair-tolerance and --free-support-margin are for \
+                 --controller eemp --gait free, not --controller {} --gait {gait} (EEMP-RL runs \
+                 the rule it was trained with)",
+                self.controller
+            ));
+        }
+        if self.adapt_friction.is_some() && !is_eemp {
+            return Err(format!(
+                "--no-adapt-friction and --adapt-friction are for --controller eemp, not {} (a \
+                 policy runs with the controller it was trained with)",
+                self.controller
+            ));
+        }
+        if !(self.duration_s.is_finite() && self.duration_s > 0.0 && self.duration_s <= 3600.0) {
+            return Err(format!(
+                "--duration {} is out of range: allowed (0, 3600] s",
+                self.duration_s
+            ));
+        }
+        let robot = RobotConfig::load_or_a1(self.robot.as_deref()).map_err(|e| e.to_string())?;
+        let driver = match driver {
+            Driver::Policy(mut p) => {
+                p.allow_robot_mismatch = self.allow_robot_mismatch;
+                p.check_robot(&robot)?;
+                Driver::Policy(p)
+            }
+            d => d,
+        };
+        let params: PlannerParams = match &self.params {
+            Some(p) => load_toml(p).map_err(|e| e.to_string())?,
+            None => PlannerParams::default(),
+        };
+        let params_table = match &self.params_table {
+            Some(p) => {
+                let t = ParamsTable::load(p).map_err(|e| e.to_string())?;
+                if !self.allow_robot_mismatch {
+                    t.robot_id().check(&robot, &p.display().to_string())?;
+                }
+                Some(t)
+            }
+            None => None,
+        };
+        if let Some(f) = self.progress_factor {
+            let [lo, hi] = eemp_core::planner::PROGRESS_FACTOR_RANGE;
+            if !(f.is_finite() && (lo..=hi).contains(&f)) {
+                return Err(format!(
+                    "--progress-factor {f} is out of range: allowed [{lo}, {hi}] (0.5 = the \
+                     paper's eq. 6, 1 = its Algorithm 1)"
+                ));
+            }
+            if let Some(theirs) = params_table.as_ref().and_then(|t| t.progress_factor) {
+                if theirs != f {
+                    eprintln!(
+                        "note: --params-table was selected with progress factor {theirs}; \
+                         walking with --progress-factor {f} as asked"
+                    );
+                }
+            }
+        }
+        let planner = PlannerConfig {
+            gait,
+            progress_factor: progress_factor(self.progress_factor, params_table.as_ref()),
+            retarget_swing: self.retarget_swing,
+            max_accel_mps2: self.max_accel_mps2,
+            preview_swings: self.preview_swings,
+            free_pairing: self.free_pairing(),
+            first_step_on_command: self.first_step_on_command,
+        };
+        planner.validate().map_err(|e| e.to_string())?;
+        let command = VelocityCommand {
+            vx_mps: self.speed_mps,
+            vy_mps: self.lateral_mps,
+            yaw_rate_rps: self.yaw_rate_rps,
+        };
+        let mut spec = WalkSpec::constant(planner, params, command, self.duration_s);
+        if let Some(p) = &self.profile {
+            spec.profile = load_toml::<VelocityProfile>(p).map_err(|e| e.to_string())?;
+        }
+        spec.controller.mpc_period_s = self.mpc_period_s;
+        if let Some(h) = self.mpc_horizon {
+            spec.controller.mpc.horizon = h;
+        }
+        if let Some(mu) = self.mpc_friction {
+            spec.controller.mpc.friction_coefficient = mu;
+        }
+        if let Some(on) = self.adapt_friction {
+            spec.controller.slip.adapt_friction = on;
+        }
+        spec.seed = self.sensing.seed;
+        spec.state_source = self.sensing.source(&robot)?;
+        spec.allow_robot_mismatch = self.allow_robot_mismatch;
+        if let Driver::Policy(p) = &driver {
+            adopt_policy_filter(&mut spec.state_source, p, &self.sensing.kf);
+        }
+        spec.floor_friction = self.floor_friction;
+        if let Some(path) = &self.scenario {
+            let sc = eemp_sim::scenario::Scenario::load(path).map_err(|e| e.to_string())?;
+            sc.apply(&mut spec);
+            if let Some(noise) = &sc.sensors {
+                if let StateSource::Kf { sensors, .. } = &mut spec.state_source {
+                    *sensors = noise.clone();
+                }
+            }
+        }
+        spec.params_table = params_table;
+        if let Some(at) = self.push_at_s {
+            if !(at.is_finite() && at >= 0.0 && at < self.duration_s) {
+                return Err(format!(
+                    "--push-at {at} is out of range: allowed [0, duration {})",
+                    self.duration_s
+                ));
+            }
+            spec.pushes
+                .push(Push::step(at, Vector3::new(0.0, self.push_dv_mps, 0.0)));
+        }
+        spec.validate().map_err(|e| e.to_string())?;
+        Ok(BuiltWalk {
+            robot,
+            spec,
+            driver,
+            gait,
+            params,
+        })
+    }
+
+    fn free_pairing(&self) -> FreePairing {
+        if self.free_unpaired {
+            return FreePairing::UNPAIRED;
+        }
+        let mut p = FreePairing::default();
+        if let Some(t) = self.free_pair_tolerance {
+            p.pair_tolerance = t;
+        }
+        if let Some(m) = self.free_support_margin_m {
+            p.support_margin_m = m;
+        }
+        p
+    }
+}
+
+/// Eq. (6)'s factor of a walk: the one given, else the one the parameter table was selected
+/// with (a table's entries are best with the factor they were found with), else the paper's 0.5.
+pub fn progress_factor(given: Option<f64>, table: Option<&ParamsTable>) -> f64 {
+    given
+        .or_else(|| table.and_then(|t| t.progress_factor))
+        .unwrap_or(eemp_core::planner::PAPER_PROGRESS_FACTOR)
+}
+
+impl BuiltWalk {
+    /// The method's name in figures and reports: `EEMP (trot)`, `EEMP-RL`, `model-free RL`, ….
+    pub fn method(&self) -> String {
+        match &self.driver {
+            Driver::Eemp => format!("EEMP ({})", self.gait),
+            Driver::Policy(p) => match p.config.task {
+                TaskKind::EempRl => "EEMP-RL".into(),
+                TaskKind::Imitation => "motion imitation".into(),
+                _ => "model-free RL".into(),
+            },
+        }
+    }
+
+    /// Runs the walk through the one closed loop, `observer` seeing every step.
+    pub fn run(self, observer: impl FnMut(&StepRecord)) -> Result<WalkRun, String> {
+        let (robot, spec) = (&self.robot, &self.spec);
+        match self.driver {
+            Driver::Eemp => run_walk(robot, spec, observer).map_err(|e| e.to_string()),
+            Driver::Policy(policy) if policy.config.task == TaskKind::EempRl => {
+                use crate::tasks::eemp_rl::EempRlController;
+                let cfg = policy.config.eemp_rl.clone();
+                let start = EempRlController::<Policy>::start_pose(
+                    robot,
+                    &cfg,
+                    spec.profile.first_speed_mps(),
+                )?;
+                let mut c = EempRlController::new(robot, cfg, *policy)?;
+                run_walk_with(robot, spec, &start, &mut c, observer).map_err(|e| e.to_string())
+            }
+            Driver::Policy(policy) => {
+                let mut c = crate::controller::PolicyController::new(
+                    *policy,
+                    robot,
+                    robot.simulation.timestep_s,
+                )?;
+                let start = StartPose::from_joints(robot, c.default_pose());
+                let run = run_walk_with(robot, spec, &start, &mut c, observer)
+                    .map_err(|e| e.to_string())?;
+                if c.invalid_steps > 0 {
+                    eprintln!(
+                        "warning: {} policy steps had a non-finite observation or action \
+                         (targets held)",
+                        c.invalid_steps
+                    );
+                }
+                Ok(run)
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use eemp_core::planner::params_table::{Interpolation, TableEntry};
+
+    #[test]
+    fn the_progress_factor_comes_from_the_option_then_the_table_then_the_paper() {
+        let table = ParamsTable::new(
+            Gait::Walk,
+            Interpolation::Nearest,
+            vec![TableEntry::new(0.3, &PlannerParams::default())],
+        )
+        .unwrap();
+        assert_eq!(progress_factor(None, None), 0.5);
+        assert_eq!(progress_factor(None, Some(&table)), 0.5);
+        let table = table.with_progress_factor(1.5).unwrap();
+        assert_eq!(progress_factor(None, Some(&table)), 1.5);
+        assert_eq!(progress_factor(Some(1.0), Some(&table)), 1.0);
+    }
+
+    #[test]
+    fn a_run_file_is_the_same_description_and_bad_values_name_the_option() {
+        let d: WalkDescription =
+            toml::from_str("gait = \"free\"\nspeed_mps = 0.5\n[sensing]\nestimator = \"kf\"\n")
+                .unwrap();
+        assert_eq!(d.gait, "free");
+        assert_eq!(d.speed_mps, 0.5);
+        assert_eq!(d.duration_s, WalkDescription::default().duration_s);
+        let built = d.build().unwrap();
+        assert!(matches!(built.spec.state_source, StateSource::Kf { .. }));
+        assert_eq!(built.method(), "EEMP (free)");
+        let bad = |d: WalkDescription, says: &str| {
+            let e = d.build().err().expect("refused");
+            assert!(e.contains(says), "{e}");
+        };
+        bad(
+            WalkDescription {
+                duration_s: f64::NAN,
+                ..Default::default()
+            },
+            "--duration NaN is out of range",
+        );
+        bad(
+            WalkDescription {
+                controller: "model-free".into(),
+                ..Default::default()
+            },
+            "needs --policy",
+        );
+        bad(
+            WalkDescription {
+                free_unpaired: true,
+                ..Default::default()
+            },
+            "are for --controller eemp --gait free",
+        );
+        assert!(toml::from_str::<WalkDescription>("sped_mps = 1").is_err());
+    }
+}
