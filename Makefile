@@ -18,18 +18,28 @@ stand: $(MUJOCO)
 	cargo run --release -p eemp-cli -- stand --duration 20 --out out/stand
 
 # Tests build the optional Rerun recorder too (eemp-viz, `--features eemp-cli/rerun`).
+# Clippy lints inside the test build: clippy-driver compiles the workspace's own crates, as
+# `cargo clippy` has it do (the same two variables), so the dependencies are compiled once
+# instead of also being checked by a separate `cargo clippy` (≈ 5 min less on a fresh 2-core
+# clone). `cargo test` builds every target here (lib, bins, tests; no examples or benches), the
+# set `cargo clippy --all-targets` lints. `make lint` is the plain `cargo clippy`.
+CLIPPY_IN_BUILD := RUSTC_WORKSPACE_WRAPPER="$$(rustc --print sysroot)/bin/clippy-driver" \
+	CLIPPY_ARGS="-D__CLIPPY_HACKERY__warnings__CLIPPY_HACKERY__"
 test: $(MUJOCO)
 	cargo fmt --all -- --check
+	$(CLIPPY_IN_BUILD) cargo test --workspace --features eemp-cli/rerun
+	$(CLIPPY_IN_BUILD) $(MAKE) python-test WHEEL_PROFILE=dev
+
+lint:
 	cargo clippy --workspace --all-targets --features eemp-cli/rerun -- -D warnings
-	cargo test --workspace --features eemp-cli/rerun
-	$(MAKE) python-test WHEEL_PROFILE=dev
 
 # The Python package (crates/eemp-py): an optimised wheel (profile `python`: release without debug
 # info) in target/wheels with libmujoco inside (auditwheel repair), installed into .venv with its
 # test tools (≈ 2.5 min from scratch on 2 cores).
 VENV := .venv/.installed
 # `make test` builds the wheel with the dev profile (the test profile's settings, see Cargo.toml):
-# the dependencies the test build just compiled are reused instead of compiled a third time.
+# the dependencies the test build just compiled are reused instead of compiled a third time
+# (and, under the test build's compiler wrapper, the workspace crates too).
 WHEEL_PROFILE ?= python
 
 $(VENV): crates/eemp-py/requirements-dev.txt

@@ -1,4 +1,6 @@
 //! Library side of the `eemp` command: plotting helpers shared by its subcommands.
+// summary.json is one serde_json::json! literal of some 60 keys (walk_outputs.rs).
+#![recursion_limit = "256"]
 pub mod bench;
 pub mod bench_estimator;
 pub mod bench_rl;

@@ -1,5 +1,6 @@
-//! `--mpc-friction`, `--mpc-horizon`, `--mpc-period`, `--adapt-friction`/`--no-adapt-friction`:
-//! the MPC's settings and slip handling of a walk.
+//! `--mpc-friction`, `--mpc-horizon`, `--mpc-period`, `--adapt-friction`/`--no-adapt-friction`,
+//! `--initial-friction`, `--ellipse-friction-factor`: the MPC's settings and slip handling of
+//! a walk.
 
 #[derive(clap::Args, Clone, Debug)]
 pub struct MpcArgs {
@@ -14,6 +15,14 @@ pub struct MpcArgs {
     /// Slip handling on whatever the gait (the walk's default is off).
     #[arg(long)]
     pub adapt_friction: bool,
+    /// With slip handling: the friction coefficient it starts from, raised by stance feet that
+    /// hold (`slip.initial_friction`; default: the MPC's).
+    #[arg(long)]
+    pub initial_friction: Option<f64>,
+    /// The placement ellipses stay within the friction cone seen from the hip: r ≤ factor · μ̂
+    /// · X_z, μ̂ the slip detector's coefficient (`planner.ellipse_friction_factor`; 0: off).
+    #[arg(long, default_value_t = eemp_core::planner::PlannerConfig::default().ellipse_friction_factor)]
+    pub ellipse_friction_factor: f64,
     /// MPC horizon, steps of its dt (default: MpcConfig's 10).
     #[arg(long)]
     pub mpc_horizon: Option<usize>,

@@ -7,17 +7,15 @@
 //! drops; runs with a row are not run again. `eemp compare` and `eemp robustness` are this
 //! runner with their own configs and reports.
 
-use crate::state_source_arg::{adopt_policy_filter, KfOptions};
+use crate::state_source_arg::KfOptions;
 use eemp_core::planner::params_table::ParamsTable;
-use eemp_core::planner::{FreePairing, Gait, PlannerConfig, PlannerParams, VelocityCommand};
+use eemp_core::planner::{FreePairing, Gait, PlannerConfig};
 use eemp_core::robot::RobotConfig;
-use eemp_rl::config::TaskKind;
-use eemp_rl::controller::PolicyController;
 use eemp_rl::policy::Policy;
-use eemp_rl::tasks::eemp_rl::EempRlController;
+use eemp_rl::run::{Sensing, WalkDescription};
 use eemp_sim::closed_loop::StateSource;
 use eemp_sim::scenario::Scenario;
-use eemp_sim::walk::{eemp_controller, run_walk_with, StartPose, VelocityProfile, WalkSpec};
+use eemp_sim::walk::VelocityProfile;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::io::Write;
@@ -47,6 +45,13 @@ pub struct MethodConfig {
     /// EEMP: slip handling (`eemp_core::slip`); absent: its default (on).
     #[serde(default)]
     pub adapt_friction: Option<bool>,
+    /// EEMP with slip handling: the friction coefficient it starts from (absent: the MPC's).
+    #[serde(default)]
+    pub initial_friction: Option<f64>,
+    /// EEMP: the ellipses' cap by the slip detector's coefficient
+    /// (`planner.ellipse_friction_factor`; absent: its default 1; 0: off).
+    #[serde(default)]
+    pub ellipse_friction_factor: Option<f64>,
     /// On the filter: its velocity-jump threshold, m/s (`KfConfig::velocity_jump_mps`; 0: off;
     /// absent: the filter's default).
     #[serde(default)]
@@ -72,6 +77,54 @@ impl MethodConfig {
             velocity_jump_mps: self.kf_velocity_jump_mps,
             leg_outlier_mps: self.kf_leg_outlier_mps,
         }
+    }
+
+    /// The method's walk at `speed_mps` (or the scenario's profile) and `seed`: the run
+    /// description every command shares ([`eemp_rl::run`]), which builds and runs it. EEMP walks
+    /// with its per-speed table (the method's, else the robot's shipped one for the gait).
+    pub fn walk(
+        &self,
+        suite: &SuiteConfig,
+        scenario: &ScenarioConfig,
+        speed_mps: f64,
+        seed: u64,
+        robot: &RobotConfig,
+    ) -> WalkDescription {
+        let gait = self.gait.clone().unwrap_or_else(|| "trot".into());
+        let mut d = WalkDescription {
+            robot: suite.robot.clone(),
+            allow_robot_mismatch: suite.allow_robot_mismatch,
+            controller: self.kind.clone(),
+            policy: self.policy.clone(),
+            sensing: Sensing {
+                estimator: self.estimator(suite).into(),
+                ideal_sensors: false,
+                seed,
+                kf: self.kf_options(),
+            },
+            speed_mps,
+            duration_s: suite.duration_s,
+            profile: scenario.profile.clone(),
+            scenario: scenario.file.clone(),
+            ..Default::default()
+        };
+        if self.kind == "eemp" {
+            d.params_table = Some(self.table.clone().unwrap_or_else(|| {
+                crate::robot_arg::shipped_table_path(robot, gait.parse().unwrap_or(Gait::Trot))
+            }));
+            d.adapt_friction = self.adapt_friction;
+            d.initial_friction = self.initial_friction;
+            if let Some(f) = self.ellipse_friction_factor {
+                d.ellipse_friction_factor = f;
+            }
+            if let Some(p) = self.free_pairing {
+                d.free_pair_tolerance = Some(p.pair_tolerance);
+                d.free_support_margin_m = Some(p.support_margin_m);
+                d.free_support_check = Some(p.support_check);
+            }
+        }
+        d.gait = gait;
+        d
     }
 
     /// Applies the method's filter settings to `source`.
@@ -329,10 +382,25 @@ impl SuiteConfig {
                     }
                     .validate()
                     .map_err(|e| format!("method '{}': {e}", m.name))?;
+                    // The rest (slip settings, the table's parameters) as every run builds it.
+                    let flat = ScenarioConfig {
+                        name: "flat".into(),
+                        file: None,
+                        speeds_mps: vec![0.3],
+                        profile: None,
+                    };
+                    m.walk(self, &flat, 0.3, 1, &robot)
+                        .build()
+                        .map_err(|e| format!("method '{}': {e}", m.name))?;
                 }
                 k @ ("model-free" | "imitation" | "eemp-rl") => {
                     for (set, key) in [
                         (m.adapt_friction.is_some(), "adapt_friction"),
+                        (m.initial_friction.is_some(), "initial_friction"),
+                        (
+                            m.ellipse_friction_factor.is_some(),
+                            "ellipse_friction_factor",
+                        ),
                         (m.free_pairing.is_some(), "free_pairing"),
                     ] {
                         if set {
@@ -442,89 +510,19 @@ pub fn simulate(
 ) -> Result<SuiteRow, String> {
     let m = &cfg.methods[run.method];
     let sc = &cfg.scenarios[run.scenario];
-    let gait: Gait = m.gait.as_deref().unwrap_or("trot").parse()?;
-    let mut spec = WalkSpec::constant(
-        PlannerConfig {
-            gait,
-            free_pairing: m.free_pairing.unwrap_or_default(),
-            ..Default::default()
-        },
-        PlannerParams::default(),
-        VelocityCommand {
-            vx_mps: run.speed_mps,
-            ..Default::default()
-        },
-        cfg.duration_s,
-    );
-    spec.seed = run.seed;
-    spec.state_source =
-        crate::state_source_arg::state_source(m.estimator(cfg), false, run.seed, robot)?;
-    m.apply_kf_options(&mut spec.state_source)?;
-    if let Some(p) = sc.load_profile()? {
-        spec.profile = p;
-    }
-    if let Some(f) = &sc.file {
-        let s = Scenario::load(f).map_err(|e| e.to_string())?;
-        s.apply(&mut spec);
-        if let (Some(noise), eemp_sim::closed_loop::StateSource::Kf { sensors, .. }) =
-            (&s.sensors, &mut spec.state_source)
-        {
-            *sensors = noise.clone();
-        }
-    }
+    let built = m.walk(cfg, sc, run.speed_mps, run.seed, robot).build()?;
     let t0 = std::time::Instant::now();
     // The parameters in force over the metrics window (EEMP's constant or table, EEMP-RL's).
     let mut params = eemp_core::planner::params_stats::ParamsStats::default();
-    let metrics_start_s = spec.metrics_start_s;
-    let mut observe = |r: &eemp_sim::closed_loop::StepRecord| {
+    let metrics_start_s = built.spec.metrics_start_s;
+    let observe = |r: &eemp_sim::closed_loop::StepRecord| {
         if r.state.time_s >= metrics_start_s {
             if let Some(p) = r.plan.and_then(|p| p.params) {
                 params.observe(r.command.vx_mps.hypot(r.command.vy_mps), &p);
             }
         }
     };
-    let walk = match m.kind.as_str() {
-        "eemp" => {
-            let t = m
-                .table
-                .clone()
-                .unwrap_or_else(|| crate::robot_arg::shipped_table_path(robot, gait));
-            spec.params_table = Some(ParamsTable::load(&t).map_err(|e| e.to_string())?);
-            spec.allow_robot_mismatch = cfg.allow_robot_mismatch;
-            if let Some(on) = m.adapt_friction {
-                spec.controller.slip.adapt_friction = on;
-            }
-            let mut c = eemp_controller(robot, &spec).map_err(|e| e.to_string())?;
-            let start = StartPose::eemp(robot, &spec).map_err(|e| e.to_string())?;
-            run_walk_with(robot, &spec, &start, &mut c, &mut observe)
-        }
-        "eemp-rl" => {
-            let mut p = Policy::load(
-                m.policy.as_ref().ok_or("no policy")?,
-                Some(TaskKind::EempRl),
-            )?;
-            p.allow_robot_mismatch = cfg.allow_robot_mismatch;
-            adopt_policy_filter(&mut spec.state_source, &p, &m.kf_options());
-            let cfg = p.config.eemp_rl.clone();
-            let start = EempRlController::<Policy>::start_pose(
-                robot,
-                &cfg,
-                spec.profile.first_speed_mps(),
-            )?;
-            let mut c = EempRlController::new(robot, cfg, p)?;
-            run_walk_with(robot, &spec, &start, &mut c, &mut observe)
-        }
-        k => {
-            let task: TaskKind = k.parse()?;
-            let mut p = Policy::load(m.policy.as_ref().ok_or("no policy")?, Some(task))?;
-            p.allow_robot_mismatch = cfg.allow_robot_mismatch;
-            adopt_policy_filter(&mut spec.state_source, &p, &m.kf_options());
-            let mut c = PolicyController::new(p, robot, robot.simulation.timestep_s)?;
-            let start = StartPose::from_joints(robot, c.default_pose());
-            run_walk_with(robot, &spec, &start, &mut c, &mut observe)
-        }
-    }
-    .map_err(|e| e.to_string())?;
+    let walk = built.run(observe)?;
     let mut row = SuiteRow {
         run_id: cfg.run_id(run),
         method: m.name.clone(),

@@ -126,6 +126,7 @@ impl WalkArgs {
             first_step_on_command: self.first_step_on_command,
             preview_swings: self.preview_swings,
             max_accel_mps2: self.max_accel,
+            ellipse_friction_factor: self.mpc.ellipse_friction_factor,
             scenario: self.scenario.clone(),
             floor_friction: self.friction,
             push_at_s: self.push_at,
@@ -134,8 +135,10 @@ impl WalkArgs {
             mpc_horizon: self.mpc.mpc_horizon,
             mpc_period_s: self.mpc.mpc_period,
             adapt_friction: self.mpc.adapt_friction(),
+            initial_friction: self.mpc.initial_friction,
             free_pair_tolerance: self.free_pair_tolerance,
             free_support_margin_m: self.free_support_margin,
+            free_support_check: None,
             free_unpaired: self.free_unpaired,
         }
     }

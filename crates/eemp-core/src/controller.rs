@@ -144,6 +144,11 @@ impl LocomotionController {
         &self.config
     }
 
+    /// The MPC's friction coefficient now (the slip detector's, when it runs).
+    pub fn friction_coefficient(&self) -> f64 {
+        self.mpc.friction_coefficient()
+    }
+
     /// `clock_s` is the controller's own clock (used for the MPC rate), s.
     pub fn update(
         &mut self,

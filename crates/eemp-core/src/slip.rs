@@ -72,6 +72,9 @@ pub struct SlipConfig {
     /// for such forces, so after a push on a grippy floor the coefficient comes back within a
     /// few solves instead of the recovery's tens of seconds.
     pub raise_on_hold: bool,
+    /// The coefficient the adapter starts from (none: the MPC's nominal). A robot set down on
+    /// an unknown floor starts cautious and lets feet that hold raise it (`raise_on_hold`).
+    pub initial_friction: Option<f64>,
 }
 
 impl Default for SlipConfig {
@@ -86,6 +89,7 @@ impl Default for SlipConfig {
             recovery_per_s: 0.02,
             refractory_s: 0.0,
             raise_on_hold: true,
+            initial_friction: None,
         }
     }
 }
@@ -123,7 +127,16 @@ impl SlipConfig {
             crate::convex_mpc::FRICTION_RANGE[1],
         )?;
         check_range("slip.recovery_per_s", self.recovery_per_s, 0.0, 10.0)?;
-        check_range("slip.refractory_s", self.refractory_s, 0.0, 10.0)
+        check_range("slip.refractory_s", self.refractory_s, 0.0, 10.0)?;
+        if let Some(mu) = self.initial_friction {
+            check_range(
+                "slip.initial_friction",
+                mu,
+                crate::convex_mpc::FRICTION_RANGE[0],
+                crate::convex_mpc::FRICTION_RANGE[1],
+            )?;
+        }
+        Ok(())
     }
 }
 
@@ -143,8 +156,12 @@ pub struct FrictionAdapter {
 impl FrictionAdapter {
     pub fn new(config: SlipConfig, nominal: f64) -> Result<Self, ConfigError> {
         config.validate()?;
+        let start = match (config.adapt_friction, config.initial_friction) {
+            (true, Some(mu)) => mu.min(nominal),
+            _ => nominal,
+        };
         Ok(FrictionAdapter {
-            current: nominal,
+            current: start,
             nominal,
             config,
             stance_since: LegMap::splat(None),
@@ -371,6 +388,51 @@ mod tests {
         moving[Leg::RearRight] = Vector3::new(0.0, 0.15, 0.0);
         assert!((a.update(0.21, &stance, &moving, &f) - (0.5 + 0.02 * 0.01)).abs() < 1e-9);
         assert_eq!(a.update(0.22, &stance, &still(), &f), 0.6);
+    }
+
+    #[test]
+    fn a_cautious_start_is_raised_by_feet_that_hold_and_ignored_when_off() {
+        let cautious = SlipConfig {
+            initial_friction: Some(0.3),
+            ..on()
+        };
+        let mut a = FrictionAdapter::new(cautious.clone(), 0.6).unwrap();
+        assert_eq!(a.friction_coefficient(), 0.3);
+        let stance = LegMap::splat(true);
+        a.update(0.0, &stance, &still(), &loaded());
+        // Past settle_s, a planted foot holding 0.45 of its load sideways: the floor gives that.
+        let mut f = loaded();
+        f[Leg::FrontLeft] = Vector3::new(18.0, 0.0, 40.0);
+        let mu = a.update(0.1, &stance, &still(), &f);
+        assert!((mu - 0.45).abs() < 1e-12, "{mu}");
+        // A start above the nominal is the nominal; with slip handling off it means nothing.
+        let high = SlipConfig {
+            initial_friction: Some(0.9),
+            ..on()
+        };
+        assert_eq!(
+            FrictionAdapter::new(high, 0.6)
+                .unwrap()
+                .friction_coefficient(),
+            0.6
+        );
+        let off = SlipConfig {
+            adapt_friction: false,
+            ..cautious
+        };
+        assert_eq!(
+            FrictionAdapter::new(off, 0.6)
+                .unwrap()
+                .friction_coefficient(),
+            0.6
+        );
+        // Out of the MPC's friction range: refused, naming the key.
+        let bad = SlipConfig {
+            initial_friction: Some(f64::NAN),
+            ..on()
+        };
+        let err = FrictionAdapter::new(bad, 0.6).err().unwrap().to_string();
+        assert!(err.contains("slip.initial_friction"), "{err}");
     }
 
     #[test]

@@ -171,6 +171,8 @@ pub struct WalkDescription {
     pub first_step_on_command: bool,
     pub preview_swings: bool,
     pub max_accel_mps2: f64,
+    /// `PlannerConfig::ellipse_friction_factor` (0: the ellipses ignore the slip detector).
+    pub ellipse_friction_factor: f64,
     /// A scenario file, applied over the rest.
     pub scenario: Option<PathBuf>,
     pub floor_friction: Option<f64>,
@@ -183,8 +185,12 @@ pub struct WalkDescription {
     /// `Some(false)`: no slip handling; `Some(true)`: on whatever the gait; `None`: the gait's
     /// default.
     pub adapt_friction: Option<bool>,
+    /// With slip handling: the coefficient it starts from (`slip.initial_friction`).
+    pub initial_friction: Option<f64>,
     pub free_pair_tolerance: Option<f64>,
     pub free_support_margin_m: Option<f64>,
+    /// Whether the free gait's support rule applies (`FreePairing::support_check`).
+    pub free_support_check: Option<bool>,
     pub free_unpaired: bool,
 }
 
@@ -210,6 +216,7 @@ impl Default for WalkDescription {
             first_step_on_command: planner.first_step_on_command,
             preview_swings: planner.preview_swings,
             max_accel_mps2: planner.max_accel_mps2,
+            ellipse_friction_factor: planner.ellipse_friction_factor,
             scenario: None,
             floor_friction: None,
             push_at_s: None,
@@ -218,8 +225,10 @@ impl Default for WalkDescription {
             mpc_horizon: None,
             mpc_period_s: eemp_core::controller::ControllerConfig::default().mpc_period_s,
             adapt_friction: None,
+            initial_friction: None,
             free_pair_tolerance: None,
             free_support_margin_m: None,
+            free_support_check: None,
             free_unpaired: false,
         }
     }
@@ -272,7 +281,8 @@ impl WalkDescription {
         };
         let free_flags = self.free_unpaired
             || self.free_pair_tolerance.is_some()
-            || self.free_support_margin_m.is_some();
+            || self.free_support_margin_m.is_some()
+            || self.free_support_check.is_some();
         if free_flags && (!is_eemp || gait != Gait::Free) {
             return Err(format!(
                 "--free-unpaired, --free-pair-tolerance and --free-support-margin are for \
@@ -281,10 +291,11 @@ impl WalkDescription {
                 self.controller
             ));
         }
-        if self.adapt_friction.is_some() && !is_eemp {
+        if (self.adapt_friction.is_some() || self.initial_friction.is_some()) && !is_eemp {
             return Err(format!(
-                "--no-adapt-friction and --adapt-friction are for --controller eemp, not {} (a \
-                 policy runs with the controller it was trained with)",
+                "--no-adapt-friction, --adapt-friction and --initial-friction are for \
+                 --controller eemp, not {} (a policy runs with the controller it was trained \
+                 with)",
                 self.controller
             ));
         }
@@ -342,6 +353,7 @@ impl WalkDescription {
             preview_swings: self.preview_swings,
             free_pairing: self.free_pairing(),
             first_step_on_command: self.first_step_on_command,
+            ellipse_friction_factor: self.ellipse_friction_factor,
         };
         planner.validate().map_err(|e| e.to_string())?;
         let command = VelocityCommand {
@@ -363,6 +375,9 @@ impl WalkDescription {
         if let Some(on) = self.adapt_friction {
             spec.controller.slip.adapt_friction = on;
         }
+        spec.controller.slip.initial_friction = self
+            .initial_friction
+            .or(spec.controller.slip.initial_friction);
         spec.seed = self.sensing.seed;
         spec.state_source = self.sensing.source(&robot)?;
         spec.allow_robot_mismatch = self.allow_robot_mismatch;
@@ -410,6 +425,9 @@ impl WalkDescription {
         }
         if let Some(m) = self.free_support_margin_m {
             p.support_margin_m = m;
+        }
+        if let Some(c) = self.free_support_check {
+            p.support_check = c;
         }
         p
     }

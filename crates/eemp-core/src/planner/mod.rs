@@ -33,6 +33,9 @@ pub const PAPER_PROGRESS_FACTOR: f64 = 0.5;
 /// Allowed [`PlannerConfig::progress_factor`] (also for a sweep's and a table's factor).
 pub const PROGRESS_FACTOR_RANGE: [f64; 2] = [0.0, 2.0];
 
+/// Allowed `PlannerConfig::ellipse_friction_factor` (0: off).
+pub const ELLIPSE_FRICTION_FACTOR_RANGE: [f64; 2] = [0.0, 3.0];
+
 /// Settings of the planner other than the five tuned parameters.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -68,6 +71,13 @@ pub struct PlannerConfig {
     /// with a wide ellipse the trunk otherwise runs up to r_x ahead of its feet before the
     /// first lift-off. Off by default (the shipped tables and reports were made without it).
     pub first_step_on_command: bool,
+    /// Keeps the placement ellipses inside the friction cone seen from the hip: r_x, r_y ≤
+    /// factor · μ̂ · X_z, μ̂ the slip detector's coefficient ([`PlannerParams::within_friction_cone`]).
+    /// 1 by default; 0 turns it off. At the nominal μ̂ = 0.6 it never binds (Table I's widest
+    /// ellipse, 0.15 m, is below 0.6 · 0.28 m), so it only acts once slips have lowered μ̂: the
+    /// trot's table at 0.1 m/s (r_x 0.15 m) fell 3 of 3 on a whole 0.2 floor on the filter and
+    /// walked 3 of 3 with r_x 0.07 m.
+    pub ellipse_friction_factor: f64,
 }
 
 impl Default for PlannerConfig {
@@ -80,6 +90,7 @@ impl Default for PlannerConfig {
             preview_swings: true,
             free_pairing: FreePairing::default(),
             first_step_on_command: false,
+            ellipse_friction_factor: 1.0,
         }
     }
 }
@@ -89,6 +100,13 @@ impl PlannerConfig {
         let [lo, hi] = PROGRESS_FACTOR_RANGE;
         check_range("planner.progress_factor", self.progress_factor, lo, hi)?;
         check_range("planner.max_accel_mps2", self.max_accel_mps2, 0.05, 20.0)?;
+        let [lo, hi] = ELLIPSE_FRICTION_FACTOR_RANGE;
+        check_range(
+            "planner.ellipse_friction_factor",
+            self.ellipse_friction_factor,
+            lo,
+            hi,
+        )?;
         self.free_pairing.validate("planner.free_pairing")
     }
 }

@@ -93,6 +93,29 @@ impl PlannerParams {
         Self::from_array(a)
     }
 
+    /// The ellipses shrunk, where needed, to r ≤ `factor` · `mu` · X_z: a stance foot at the
+    /// edge of an ellipse that wide sits r from under its hip, and a leg force pointing along
+    /// the leg (the cheapest in joint torque) then leans r / X_z from the vertical, which a floor
+    /// of friction μ holds only for r ≤ μ · X_z. Never below `floor_m` per axis ([r_x, r_y]:
+    /// where eq. (6) puts the touchdown, so a foot does not land outside its ellipse and swing
+    /// again at once) nor Table I's smallest axis, and never above the axis it had. `factor` 0
+    /// (or a non-finite `mu`) leaves them as they are.
+    pub fn within_friction_cone(&self, mu: f64, factor: f64, floor_m: [f64; 2]) -> Self {
+        if factor <= 0.0 || !mu.is_finite() {
+            return *self;
+        }
+        let cap = factor * mu * self.body_height_m;
+        let shrink = |r: f64, floor: f64| {
+            let floor = if floor.is_finite() { floor } else { 0.0 };
+            r.min(cap.max(floor).max(table_i::ELLIPSE_AXIS_M[0]))
+        };
+        PlannerParams {
+            ellipse_rx_m: shrink(self.ellipse_rx_m, floor_m[0]),
+            ellipse_ry_m: shrink(self.ellipse_ry_m, floor_m[1]),
+            ..*self
+        }
+    }
+
     /// Checks every parameter against Table I; the error names the parameter and its range.
     pub fn validate(&self) -> Result<(), ConfigError> {
         use table_i::*;
@@ -147,6 +170,41 @@ mod tests {
         assert_eq!(q.ellipse_rx_m, 0.01);
         assert_eq!(q.ellipse_ry_m, p.ellipse_ry_m);
         assert_eq!(PlannerParams::from_array(p.to_array()), p);
+    }
+
+    #[test]
+    fn the_ellipses_shrink_into_the_friction_cone_from_the_hip() {
+        // The trot table's 0.1 m/s entry: r_x 0.15, r_y 0.1 at X_z 0.28.
+        let p = PlannerParams {
+            body_height_m: 0.28,
+            ellipse_rx_m: 0.15,
+            ellipse_ry_m: 0.1,
+            ..Default::default()
+        };
+        // μ 0.6: 0.168 m, above both axes: unchanged, bit for bit.
+        assert_eq!(p.within_friction_cone(0.6, 1.0, [0.0; 2]), p);
+        // μ 0.2: 0.2 · 0.28 = 0.056 m for both; the rest unchanged.
+        let q = p.within_friction_cone(0.2, 1.0, [0.0; 2]);
+        assert!((q.ellipse_rx_m - 0.056).abs() < 1e-12, "{q:?}");
+        assert!((q.ellipse_ry_m - 0.056).abs() < 1e-12);
+        assert_eq!(
+            (q.swing_time_s, q.step_height_m, q.body_height_m),
+            (p.swing_time_s, p.step_height_m, p.body_height_m)
+        );
+        // A factor of 1.5 at μ 0.3: 0.126 m caps r_x only.
+        let r = p.within_friction_cone(0.3, 1.5, [0.0; 2]);
+        assert!((r.ellipse_rx_m - 0.126).abs() < 1e-12);
+        assert_eq!(r.ellipse_ry_m, 0.1);
+        // Not below the floor (the touchdown's offset), nor above the axis it had.
+        let s = p.within_friction_cone(0.2, 1.0, [0.08, 0.2]);
+        assert_eq!((s.ellipse_rx_m, s.ellipse_ry_m), (0.08, 0.1));
+        // Never below Table I's smallest axis; off with factor 0 or without a coefficient.
+        assert_eq!(
+            p.within_friction_cone(0.001, 1.0, [0.0; 2]).ellipse_rx_m,
+            0.01
+        );
+        assert_eq!(p.within_friction_cone(0.2, 0.0, [0.0; 2]), p);
+        assert_eq!(p.within_friction_cone(f64::NAN, 1.0, [0.0; 2]), p);
     }
 
     #[test]
