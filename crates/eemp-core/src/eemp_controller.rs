@@ -8,12 +8,6 @@ use crate::planner::params_table::ParamsTable;
 use crate::planner::{EemPlanner, PlannerParams};
 use crate::stand_profile::StandPlanner;
 
-/// How much wider than eq. (6)'s commanded touchdown offset (factor · V · ΔT) an ellipse
-/// shrunk into the friction cone stays: at 1.25 the trot's table at 0.5 m/s (r_x 0.07 m, offset
-/// 0.0625 m) is left alone, where shrinking it to 0.056 m on a 0.2 floor made it fall 3 of 3
-/// on the filter (1 of 3 unshrunk).
-pub const STRIDE_MARGIN: f64 = 1.25;
-
 /// Where the planner's five parameters come from at each step.
 #[derive(Clone, Debug, PartialEq)]
 pub enum ParamsSource {
@@ -69,15 +63,11 @@ impl Controller for EempController {
         let t = input.state.time_s;
         let c = input.command;
         let started = std::time::Instant::now();
-        let table = self.params.at_speed(c.vx_mps.hypot(c.vy_mps));
-        // The slip detector's coefficient as of the last step (the nominal until a slip); the
-        // ellipses no smaller than eq. (6)'s commanded offset with a margin.
-        let config = self.planner.config();
-        let reach = STRIDE_MARGIN * config.progress_factor * table.swing_time_s;
-        let params = table.within_friction_cone(
+        // The slip detector's coefficient as of the last step (the nominal until a slip).
+        let params = self.planner.config().within_friction_cone(
+            &self.params.at_speed(c.vx_mps.hypot(c.vy_mps)),
             self.locomotion.friction_coefficient(),
-            config.ellipse_friction_factor,
-            [reach * c.vx_mps.abs(), reach * c.vy_mps.abs()],
+            &c,
         );
         let plan = self
             .planner

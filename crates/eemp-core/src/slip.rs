@@ -406,26 +406,17 @@ mod tests {
         let mu = a.update(0.1, &stance, &still(), &f);
         assert!((mu - 0.45).abs() < 1e-12, "{mu}");
         // A start above the nominal is the nominal; with slip handling off it means nothing.
+        let start = |c: SlipConfig| FrictionAdapter::new(c, 0.6).unwrap().friction_coefficient();
         let high = SlipConfig {
             initial_friction: Some(0.9),
             ..on()
         };
-        assert_eq!(
-            FrictionAdapter::new(high, 0.6)
-                .unwrap()
-                .friction_coefficient(),
-            0.6
-        );
+        assert_eq!(start(high), 0.6);
         let off = SlipConfig {
             adapt_friction: false,
             ..cautious
         };
-        assert_eq!(
-            FrictionAdapter::new(off, 0.6)
-                .unwrap()
-                .friction_coefficient(),
-            0.6
-        );
+        assert_eq!(start(off), 0.6);
         // Out of the MPC's friction range: refused, naming the key.
         let bad = SlipConfig {
             initial_friction: Some(f64::NAN),

@@ -375,9 +375,9 @@ impl WalkDescription {
         if let Some(on) = self.adapt_friction {
             spec.controller.slip.adapt_friction = on;
         }
-        spec.controller.slip.initial_friction = self
-            .initial_friction
-            .or(spec.controller.slip.initial_friction);
+        if let Some(mu) = self.initial_friction {
+            spec.controller.slip.initial_friction = Some(mu);
+        }
         spec.seed = self.sensing.seed;
         spec.state_source = self.sensing.source(&robot)?;
         spec.allow_robot_mismatch = self.allow_robot_mismatch;

@@ -36,6 +36,12 @@ pub const PROGRESS_FACTOR_RANGE: [f64; 2] = [0.0, 2.0];
 /// Allowed `PlannerConfig::ellipse_friction_factor` (0: off).
 pub const ELLIPSE_FRICTION_FACTOR_RANGE: [f64; 2] = [0.0, 3.0];
 
+/// How much wider than eq. (6)'s commanded touchdown offset an ellipse shrunk into the friction
+/// cone stays: at 1.25 the trot's table at 0.5 m/s (r_x 0.07 m, offset 0.0625 m) is left alone,
+/// where shrinking it to 0.056 m on a 0.2 floor made it fall 3 of 3 on the filter (1 of 3
+/// unshrunk): its feet landed outside their ellipses and swung again.
+pub const STRIDE_MARGIN: f64 = 1.25;
+
 /// Settings of the planner other than the five tuned parameters.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -75,8 +81,8 @@ pub struct PlannerConfig {
     /// factor · μ̂ · X_z, μ̂ the slip detector's coefficient ([`PlannerParams::within_friction_cone`]).
     /// 1 by default; 0 turns it off. At the nominal μ̂ = 0.6 it never binds (Table I's widest
     /// ellipse, 0.15 m, is below 0.6 · 0.28 m), so it only acts once slips have lowered μ̂: the
-    /// trot's table at 0.1 m/s (r_x 0.15 m) fell 3 of 3 on a whole 0.2 floor on the filter and
-    /// walked 3 of 3 with r_x 0.07 m.
+    /// trot's table at 0.1 m/s (r_x 0.15 m, r_y 0.10 m) fell 3 of 3 on a whole 0.2 floor on the
+    /// filter and walked 3 of 3 with r_x 0.07 m, r_y 0.05 m.
     pub ellipse_friction_factor: f64,
 }
 
@@ -108,6 +114,33 @@ impl PlannerConfig {
             hi,
         )?;
         self.free_pairing.validate("planner.free_pairing")
+    }
+
+    /// `params` with the ellipses inside the friction cone of coefficient `mu`
+    /// ([`PlannerParams::within_friction_cone`] with this config's factor), each axis kept at
+    /// least [`STRIDE_MARGIN`] × eq. (6)'s offset at the commanded velocity.
+    pub fn within_friction_cone(
+        &self,
+        params: &PlannerParams,
+        mu: f64,
+        command: &VelocityCommand,
+    ) -> PlannerParams {
+        let v = Vector2::new(command.vx_mps, command.vy_mps);
+        let offset = touchdown::progress(
+            &v,
+            &v,
+            params.swing_time_s,
+            params.body_height_m,
+            self.progress_factor,
+        );
+        params.within_friction_cone(
+            mu,
+            self.ellipse_friction_factor,
+            [
+                STRIDE_MARGIN * offset.x.abs(),
+                STRIDE_MARGIN * offset.y.abs(),
+            ],
+        )
     }
 }
 

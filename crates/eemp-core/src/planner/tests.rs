@@ -283,3 +283,38 @@ fn the_first_step_on_command_starts_one_trot_pair_at_once_then_the_ellipses_rule
     let after = on.plan(1.0, &state, &feet, &go, &params);
     assert_eq!(after.stance, LegMap::splat(true));
 }
+
+#[test]
+fn the_friction_cone_keeps_each_ellipse_at_least_eq6s_offset_wide() {
+    let config = PlannerConfig::default();
+    // The trot's table at 0.5 m/s: ΔT 0.25, X_z 0.31, r_x 0.07, r_y 0.05.
+    let p = PlannerParams {
+        swing_time_s: 0.25,
+        body_height_m: 0.31,
+        ellipse_rx_m: 0.07,
+        ellipse_ry_m: 0.05,
+        ..Default::default()
+    };
+    let command = VelocityCommand {
+        vx_mps: 0.5,
+        vy_mps: 0.0,
+        yaw_rate_rps: 0.0,
+    };
+    // μ̂ 0.2: the cone gives 0.2 · 0.31 = 0.062 m, eq. (6)'s offset 0.5 · 0.25 · ½ = 0.0625 m
+    // × 1.25 = 0.078125 m along x: r_x stays 0.07; across, no offset: r_y 0.05 < 0.062 stays.
+    assert_eq!(config.within_friction_cone(&p, 0.2, &command), p);
+    // At 0.1 m/s the offset is 0.015625 m: r_x shrinks to the cone's 0.062 m.
+    let slow = VelocityCommand {
+        vx_mps: 0.1,
+        ..command
+    };
+    let q = config.within_friction_cone(&p, 0.2, &slow);
+    assert!((q.ellipse_rx_m - 0.062).abs() < 1e-12, "{q:?}");
+    assert_eq!(q.ellipse_ry_m, 0.05);
+    // Factor 0: off.
+    let off = PlannerConfig {
+        ellipse_friction_factor: 0.0,
+        ..config
+    };
+    assert_eq!(off.within_friction_cone(&p, 0.2, &slow), p);
+}
