@@ -2,7 +2,7 @@
 #   make demo   -- the main job: a simulated A1 walking under EEMP, metrics and figures in out/demo
 #   make test   -- every test (what .ci/run runs)
 # Both install MuJoCo 3.17.0 into .mujoco/ first (from the PyPI wheel; nothing else is needed).
-.PHONY: mujoco demo stand test lint bench python python-test viewer
+.PHONY: mujoco demo stand test lint bench python python-test viewer dds-peer
 
 MUJOCO := .mujoco/lib/libmujoco.so
 
@@ -25,9 +25,20 @@ stand: $(MUJOCO)
 # set `cargo clippy --all-targets` lints. `make lint` is the plain `cargo clippy`.
 CLIPPY_IN_BUILD := RUSTC_WORKSPACE_WRAPPER="$$(rustc --print sysroot)/bin/clippy-driver" \
 	CLIPPY_ARGS="-D__CLIPPY_HACKERY__warnings__CLIPPY_HACKERY__"
-test: $(MUJOCO)
+# The Go2's DDS interop test talks to a peer on Eclipse Cyclone DDS's own Python binding
+# (`cyclonedds` from PyPI, in .venv-dds, with Unitree's own IDL classes and CRC from the
+# `unitree-sdk2` wheel); EEMP_REQUIRE_DDS_PEER=1 makes a missing peer a failure
+# instead of a loud skip.
+DDS_PEER := .venv-dds/.installed-cyclonedds-11.0.1-unitree-sdk2-1.0.1
+
+$(DDS_PEER):
+	./scripts/install-dds-peer.sh
+
+dds-peer: $(DDS_PEER)
+
+test: $(MUJOCO) $(DDS_PEER)
 	cargo fmt --all -- --check
-	$(CLIPPY_IN_BUILD) cargo test --workspace --features eemp-cli/rerun
+	EEMP_REQUIRE_DDS_PEER=1 $(CLIPPY_IN_BUILD) cargo test --workspace --features eemp-cli/rerun
 	$(CLIPPY_IN_BUILD) $(MAKE) python-test WHEEL_PROFILE=dev
 
 lint:

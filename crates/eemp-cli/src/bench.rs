@@ -1,5 +1,5 @@
 //! `eemp bench mpc`: how long one convex-MPC solve takes, per QP solver option, against one bare
-//! MuJoCo step of the A1 measured in the same run (so the ratio does not depend on the machine).
+//! MuJoCo step of the robot (the A1 by default, `--robot FILE`) measured in the same run (so the ratio does not depend on the machine).
 //!
 //! Two representative states are solved repeatedly, each time slightly perturbed by a seeded
 //! RNG so the solver does real work:
@@ -44,6 +44,8 @@ pub struct MpcBenchOptions {
     pub solves: usize,
     /// Timed bare MuJoCo steps (default 20000).
     pub mujoco_steps: usize,
+    /// The robot whose MPC and MuJoCo model are timed (default the A1).
+    pub robot: RobotConfig,
 }
 
 impl Default for MpcBenchOptions {
@@ -52,6 +54,7 @@ impl Default for MpcBenchOptions {
             horizon: MpcConfig::default().horizon,
             solves: 300,
             mujoco_steps: 20_000,
+            robot: RobotConfig::a1(),
         }
     }
 }
@@ -219,8 +222,8 @@ fn time_case(
     drop_swing_forces: bool,
     options: &MpcBenchOptions,
 ) -> MpcBenchRow {
-    let robot = RobotConfig::a1();
-    let kin = LegKinematics::new(&robot);
+    let robot = &options.robot;
+    let kin = LegKinematics::new(robot);
     let config = MpcConfig {
         horizon: options.horizon,
         solver,
@@ -283,35 +286,24 @@ fn median_and_p99(samples: &mut [f64]) -> (f64, f64) {
     (nearest_rank(samples, 0.5), nearest_rank(samples, 0.99))
 }
 
-/// Median time of one bare MuJoCo step of the A1 with zero torques, µs: measured in batches of
-/// 100 steps (median over batches of batch time / 100), reset to the crouched pose every 2000
-/// steps so the robot keeps falling onto and settling on the floor (contact-rich states).
-/// Median time of one bare `mj_step` of the A1 in the states it is in while standing under
+/// Median time of one bare `mj_step` of the robot in the states it is in while standing under
 /// control (four foot contacts), µs. States and torques are recorded from a standing run, then
 /// each is restored and stepped once; a collapsing robot would give contact-rich, slower steps
 /// and flatter every ratio against it.
-fn time_mujoco_step(steps: usize) -> f64 {
-    let robot = RobotConfig::a1();
+fn time_mujoco_step(robot: &RobotConfig, steps: usize) -> f64 {
     let mut profile = BodyMotionProfile::default();
     profile.segments.truncate(3);
     let mut recorded = Vec::new();
     let mut i = 0usize;
-    run_stand(
-        &robot,
-        ControllerConfig::default(),
-        profile,
-        4.0,
-        &[],
-        |r| {
-            if r.state.time_s > 2.2 && i.is_multiple_of(10) {
-                recorded.push((*r.state, r.output.torques));
-            }
-            i += 1;
-        },
-    )
+    run_stand(robot, ControllerConfig::default(), profile, 4.0, &[], |r| {
+        if r.state.time_s > 2.2 && i.is_multiple_of(10) {
+            recorded.push((*r.state, r.output.torques));
+        }
+        i += 1;
+    })
     .expect("the standing scenario runs");
     let mut sim =
-        Simulation::new(&robot, &SceneExtras::default()).expect("the A1 model builds in MuJoCo");
+        Simulation::new(robot, &SceneExtras::default()).expect("the robot model builds in MuJoCo");
     let mut per_step_us = Vec::with_capacity(steps);
     for k in 0..steps.max(1) {
         let (state, torques) = &recorded[k % recorded.len()];
@@ -367,7 +359,7 @@ fn report_from(
 /// Runs the whole benchmark: every case × solver option, then the bare MuJoCo step.
 pub fn bench_mpc(options: &MpcBenchOptions) -> MpcBenchReport {
     let rows = run_cases(options);
-    let mujoco_step_us = time_mujoco_step(options.mujoco_steps);
+    let mujoco_step_us = time_mujoco_step(&options.robot, options.mujoco_steps);
     report_from(options, rows, mujoco_step_us)
 }
 
@@ -415,7 +407,7 @@ impl MpcBenchReport {
             );
         }
         s += &format!(
-            "MuJoCo step (A1, bare mj_step): {:.2} us\n\
+            "MuJoCo step (bare mj_step): {:.2} us\n\
              default config, four feet: median {:.1} us, p99 {:.1} us = {:.1} MuJoCo steps\n\
              default config, trot (two feet): median {:.1} us",
             self.mujoco_step_us, self.median_us, self.p99_us, self.ratio, self.trot_median_us
@@ -446,6 +438,7 @@ mod tests {
             horizon: 10,
             solves: 5,
             mujoco_steps: 200,
+            robot: RobotConfig::a1(),
         }
     }
 

@@ -1,5 +1,5 @@
 //! `eemp bench estimator`: the linear Kalman filter's cost per update against a bare MuJoCo
-//! step of the A1, in one run (the filter runs in the robot's 1 kHz loop).
+//! step of the robot (the A1 by default), in one run (the filter runs in the robot's 1 kHz loop).
 
 use eemp_core::estimator::{EstimatorInput, KfConfig, LinearKf};
 use eemp_core::leg::LegMap;
@@ -31,8 +31,8 @@ impl EstimatorBench {
 }
 
 /// Times `updates` filter updates on a standing robot's readings and as many bare steps.
-pub fn bench_estimator(updates: usize) -> Result<EstimatorBench, String> {
-    let robot = RobotConfig::a1();
+pub fn bench_estimator(updates: usize, robot: &RobotConfig) -> Result<EstimatorBench, String> {
+    let robot = robot.clone();
     let mut sim = Simulation::new(&robot, &SceneExtras::default()).map_err(|e| e.to_string())?;
     let q0 = robot.standing_pose();
     let start = StartPose::from_joints(&robot, q0);

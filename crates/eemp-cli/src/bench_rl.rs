@@ -23,6 +23,7 @@ pub struct RlBenchOptions {
     pub threads: usize,
     /// Hidden layers of actor and critic.
     pub hidden: Vec<usize>,
+    pub robot: RobotConfig,
 }
 
 pub struct RlBenchReport {
@@ -68,7 +69,7 @@ fn env_rate(
 }
 
 pub fn bench_rl(o: &RlBenchOptions) -> Result<RlBenchReport, String> {
-    let robot = RobotConfig::a1();
+    let robot = o.robot.clone();
     let mut config = TrainConfig {
         num_envs: o.num_envs,
         ..Default::default()

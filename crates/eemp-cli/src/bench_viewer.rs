@@ -29,13 +29,17 @@ impl ViewerBench {
     }
 }
 
-pub fn bench_viewer(duration_s: f64, rounds: usize) -> Result<ViewerBench, String> {
+pub fn bench_viewer(
+    duration_s: f64,
+    rounds: usize,
+    robot: &RobotConfig,
+) -> Result<ViewerBench, String> {
     if !(duration_s.is_finite() && (1.0..=600.0).contains(&duration_s)) {
         return Err(format!(
             "--duration {duration_s} is out of range: allowed [1, 600] s"
         ));
     }
-    let robot = RobotConfig::a1();
+    let robot = robot.clone();
     let spec = WalkSpec::constant(
         PlannerConfig {
             gait: Gait::Trot,

@@ -1,6 +1,7 @@
-//! `eemp hw` (a controller on an A1 over UDP, behind the safety layer) and `eemp sim-robot`
-//! (a MuJoCo A1 speaking the same protocol).
+//! `eemp hw` (a controller on an A1 over UDP or a Go2 over DDS, behind the safety layer) and
+//! `eemp sim-robot` (the MuJoCo robot speaking the same interface).
 
+use crate::link_arg::{LinkArgs, Resolved};
 use eemp_core::estimator::KfConfig;
 use eemp_core::hardware::a1_protocol::LowState;
 use eemp_core::hardware::safety::SafetyConfig;
@@ -8,16 +9,18 @@ use eemp_core::leg::{Leg, LegMap};
 use eemp_core::planner::params_table::ParamsTable;
 use eemp_core::planner::{Gait, PlannerConfig, PlannerParams, VelocityCommand};
 use eemp_core::robot::RobotConfig;
+use eemp_hw::dds::{ROBOT_DOMAIN_ID, SIM_DOMAIN_ID};
 use eemp_hw::link::{Faults, Link};
+use eemp_hw::motion_switcher::ReleaseOptions;
 use eemp_hw::runner::{run_hw, HwOptions, TorqueSpike, Transport};
-use eemp_hw::sim_robot::{run_sim_robot, SimRobotOptions};
+use eemp_hw::sim_robot::{run_sim_robot, RobotWire, SimRobotOptions};
 use eemp_sim::walk::{eemp_controller, StartPose, WalkSpec};
 use std::io::Write;
 use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
 
-/// Faults to inject on the datagrams this side sends (tests, rehearsals).
+/// Faults to inject on the datagrams (or DDS samples) this side sends (tests, rehearsals).
 #[derive(clap::Args, Debug, Clone)]
 pub struct FaultArgs {
     /// Probability that a sent datagram is lost.
@@ -51,17 +54,26 @@ impl FaultArgs {
 #[derive(clap::Args, Debug)]
 #[command(allow_negative_numbers = true)]
 pub struct HwArgs {
-    /// The robot's address (the A1: 192.168.123.10:8007; `eemp sim-robot`: 127.0.0.1:PORT).
-    /// (Before robot files took `--robot`, this was `--robot`.)
-    #[arg(long, required_unless_present = "dry_run")]
+    /// UDP only: the robot's address (the A1: 192.168.123.10:8007; `eemp sim-robot`:
+    /// 127.0.0.1:PORT). (Before robot files took `--robot`, this was `--robot`.)
+    #[arg(long)]
     pub address: Option<SocketAddr>,
     #[command(flatten)]
     pub robot: crate::robot_arg::RobotArgs,
+    #[command(flatten)]
+    pub link: LinkArgs,
+    /// DDS only: the robot is already in low-level mode; do not ask its motion switcher to
+    /// release sport mode first (without it, hw refuses to start when the release fails).
+    #[arg(long)]
+    pub no_release: bool,
+    /// DDS only: give up releasing sport mode after this long, s.
+    #[arg(long, default_value_t = 20.0)]
+    pub release_timeout: f64,
     /// On a robot there is no truth: the recording shows the filter's estimate, the commands
     /// and the torques sent (`--rerun-serve PORT` for a robot computer without a display).
     #[command(flatten)]
     pub rerun: crate::rerun_arg::RerunArgs,
-    /// Local address to send from (the SDK uses port 8080).
+    /// UDP only: local address to send from (the SDK uses port 8080).
     #[arg(long, default_value = "0.0.0.0:8080")]
     pub bind: SocketAddr,
     /// Print the first commands it would send for a robot standing still, without a socket.
@@ -164,24 +176,27 @@ fn standing_state(robot: &RobotConfig) -> LowState {
     s
 }
 
-/// The UDP link speaks the A1's protocol only: another robot's low level is refused, named.
-fn check_udp(robot: &RobotConfig) -> Result<(), String> {
-    use eemp_core::robot::LowLevelProtocol;
-    match robot.sdk.protocol {
-        LowLevelProtocol::A1Udp => Ok(()),
-        p => Err(format!(
-            "robot '{}' speaks '{}' (sdk.protocol), not the A1's UDP protocol this link \
-             implements; the Go2's DDS link is not built yet, and the Go1 has no checked codec \
-             (simulate it with eemp walk / stand --robot instead)",
-            robot.name,
-            p.name()
-        )),
+/// What summary.json says about the wire.
+fn link_json(t: &Transport) -> serde_json::Value {
+    match t {
+        Transport::Udp { robot, bind, .. } => {
+            serde_json::json!({"kind": "udp", "robot": robot.to_string(), "bind": bind.to_string()})
+        }
+        Transport::Dds {
+            config, release, ..
+        } => serde_json::json!({
+            "kind": "dds",
+            "domain": config.domain_id,
+            "iface": config.iface,
+            "release_sport_mode": release.is_some(),
+        }),
+        Transport::DryRun { .. } => serde_json::json!({"kind": "dry-run"}),
     }
 }
 
 pub fn run_hw_cmd(args: &HwArgs) -> Result<(), String> {
     let robot = args.robot.load()?;
-    check_udp(&robot)?;
+    let link = args.link.resolve(&robot, ROBOT_DOMAIN_ID, None)?;
     let safety: SafetyConfig = match &args.safety {
         Some(p) => eemp_core::config_error::load_toml(p).map_err(|e| e.to_string())?,
         None => SafetyConfig::default(),
@@ -200,12 +215,31 @@ pub fn run_hw_cmd(args: &HwArgs) -> Result<(), String> {
             state: Box::new(standing_state(&robot)),
         }
     } else {
-        Transport::Udp {
-            robot: args
-                .address
-                .expect("clap requires --address without --dry-run"),
-            bind: args.bind,
-            faults: args.faults.faults(),
+        match link {
+            Resolved::Udp => Transport::Udp {
+                robot: args
+                    .address
+                    .ok_or("--address is required on the UDP link (the A1: 192.168.123.10:8007)")?,
+                bind: args.bind,
+                faults: args.faults.faults(),
+            },
+            Resolved::Dds(config) => {
+                if args.address.is_some() {
+                    return Err(
+                        "--address is a UDP setting: the DDS link finds the robot by \
+                                discovery on --domain / --iface"
+                            .into(),
+                    );
+                }
+                Transport::Dds {
+                    config,
+                    faults: args.faults.faults(),
+                    release: (!args.no_release).then(|| ReleaseOptions {
+                        timeout_s: args.release_timeout,
+                        ..Default::default()
+                    }),
+                }
+            }
         }
     };
     let opts = HwOptions {
@@ -324,6 +358,7 @@ pub fn run_hw_cmd(args: &HwArgs) -> Result<(), String> {
         "rerun": recording,
         "controller": args.controller,
         "address": args.address.map(|a| a.to_string()),
+        "link": link_json(&opts.transport),
         "robot": crate::robot_arg::robot_json(&robot, args.robot.allow_robot_mismatch),
         "dry_run": args.dry_run,
         "rate_hz": args.rate,
@@ -343,7 +378,7 @@ pub fn run_hw_cmd(args: &HwArgs) -> Result<(), String> {
 
 #[derive(clap::Args, Debug)]
 pub struct SimRobotArgs {
-    /// Address to listen on for command datagrams.
+    /// UDP only: address to listen on for command datagrams.
     #[arg(long, default_value = "127.0.0.1:8007")]
     pub bind: SocketAddr,
     /// Simulated seconds before it stops.
@@ -354,9 +389,15 @@ pub struct SimRobotArgs {
     pub freeze_after: Option<f64>,
     #[command(flatten)]
     pub faults: FaultArgs,
-    /// Robot description (default: the shipped A1); it must speak the A1's UDP protocol.
+    /// Robot description (default: the shipped A1); robots/go2.toml speaks DDS.
     #[arg(long)]
     pub robot: Option<PathBuf>,
+    #[command(flatten)]
+    pub link: LinkArgs,
+    /// DDS only: start in low-level mode, with no motion-switcher service (a Go2 starts in
+    /// sport mode and ignores low-level commands until `eemp hw` releases it).
+    #[arg(long)]
+    pub low_level_mode: bool,
     /// summary.json and truth.csv (100 Hz) go here.
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -370,7 +411,12 @@ pub fn run_sim_robot_cmd(args: &SimRobotArgs) -> Result<(), String> {
         ));
     }
     let robot = crate::robot_arg::load_robot(args.robot.as_deref())?;
-    check_udp(&robot)?;
+    let link = args.link.resolve(&robot, SIM_DOMAIN_ID, Some("lo"))?;
+    if link == Resolved::Udp && args.low_level_mode {
+        return Err(
+            "--low-level-mode is a DDS setting (the A1 has no sport mode to release)".into(),
+        );
+    }
     // Standing as EEMP starts (Table II's trunk height, feet under the hips).
     let spec = WalkSpec::constant(
         PlannerConfig::default(),
@@ -379,19 +425,28 @@ pub fn run_sim_robot_cmd(args: &SimRobotArgs) -> Result<(), String> {
         args.duration,
     );
     let start = StartPose::eemp(&robot, &spec).map_err(|e| e.to_string())?;
-    let link = Link::bind(args.bind, args.faults.faults())?;
-    eprintln!("sim-robot listening on {}", link.local_addr());
+    let wire = match link {
+        Resolved::Udp => RobotWire::udp(Link::bind(args.bind, args.faults.faults())?),
+        Resolved::Dds(cfg) => RobotWire::dds(&cfg, args.faults.faults(), !args.low_level_mode)?,
+    };
+    eprintln!(
+        "sim-robot '{}' listening on {}",
+        robot.name,
+        wire.describe()
+    );
     let opts = SimRobotOptions {
         duration_s: args.duration,
         state_period_s: 0.002,
         freeze_after_s: args.freeze_after,
         start,
     };
-    let report = run_sim_robot(&robot, &opts, link, &AtomicBool::new(false))?;
+    let report = run_sim_robot(&robot, &opts, wire, &AtomicBool::new(false))?;
     let summary = serde_json::json!({
+        "robot": crate::robot_arg::robot_json(&robot, false),
         "steps": report.steps,
         "commands": report.commands,
         "bad_datagrams": report.bad_datagrams,
+        "ignored_commands": report.ignored_commands,
         "late_steps": report.late_steps,
         "fell_at_s": report.fell_at_s,
         "link": report.link,

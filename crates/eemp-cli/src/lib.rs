@@ -6,6 +6,7 @@ pub mod bench_estimator;
 pub mod bench_rl;
 pub mod bench_viewer;
 pub mod hw_cmd;
+pub mod link_arg;
 pub mod mpc_arg;
 pub mod output;
 pub mod paper_report;

@@ -47,6 +47,9 @@ enum Command {
     Reproduce(reproduce_cmd::ReproduceArgs),
     /// Benchmarks.
     Bench {
+        /// Robot description to time (default: the shipped A1).
+        #[arg(long, global = true)]
+        robot: Option<std::path::PathBuf>,
         #[command(subcommand)]
         what: BenchCommand,
     },
@@ -128,6 +131,7 @@ fn main() {
         Command::Compare(args) => suite_cmd::compare(&args),
         Command::Robustness(args) => suite_cmd::robustness(&args),
         Command::Bench {
+            robot,
             what: BenchCommand::Mpc { solves, horizon },
         } => (|| {
             if !(2..=30).contains(&horizon) {
@@ -139,12 +143,14 @@ fn main() {
                 horizon,
                 solves,
                 mujoco_steps: 20000,
+                robot: eemp_cli::robot_arg::load_robot(robot.as_deref())?,
             });
             println!("{}", report.table());
             println!("{}", report.json_line());
             Ok(())
         })(),
         Command::Bench {
+            robot,
             what:
                 BenchCommand::Rl {
                     envs,
@@ -153,25 +159,32 @@ fn main() {
                     threads,
                     hidden,
                 },
-        } => eemp_cli::bench_rl::bench_rl(&eemp_cli::bench_rl::RlBenchOptions {
-            num_envs: envs,
-            steps,
-            train_iterations,
-            hidden,
-            threads: threads.unwrap_or_else(|| {
-                std::thread::available_parallelism()
-                    .map(|n| n.get())
-                    .unwrap_or(1)
+        } => eemp_cli::robot_arg::load_robot(robot.as_deref())
+            .and_then(|robot| {
+                eemp_cli::bench_rl::bench_rl(&eemp_cli::bench_rl::RlBenchOptions {
+                    robot,
+                    num_envs: envs,
+                    steps,
+                    train_iterations,
+                    hidden,
+                    threads: threads.unwrap_or_else(|| {
+                        std::thread::available_parallelism()
+                            .map(|n| n.get())
+                            .unwrap_or(1)
+                    }),
+                })
+            })
+            .map(|r| {
+                println!("{}", r.table());
+                println!("{}", r.json_line());
             }),
-        })
-        .map(|r| {
-            println!("{}", r.table());
-            println!("{}", r.json_line());
-        }),
         Command::Bench {
+            robot,
             what: BenchCommand::Viewer { duration, rounds },
-        } => eemp_cli::bench_viewer::bench_viewer(duration, rounds).map(|r| {
-            println!(
+        } => eemp_cli::robot_arg::load_robot(robot.as_deref())
+            .and_then(|robot| eemp_cli::bench_viewer::bench_viewer(duration, rounds, &robot))
+            .map(|r| {
+                println!(
                 "real-time factor, best of {rounds}: no recorder {:.1}x, to a file {:.1}x ({:.2}), \
                  to a viewer that never answers {:.1}x ({:.2}, {} frames dropped)",
                 r.rtf[0],
@@ -181,19 +194,22 @@ fn main() {
                 r.rtf[2] / r.rtf[0],
                 r.dropped_stuck
             );
-            println!("{}", r.json_line());
-        }),
+                println!("{}", r.json_line());
+            }),
         Command::Bench {
+            robot,
             what: BenchCommand::Estimator { updates },
-        } => eemp_cli::bench_estimator::bench_estimator(updates.max(1)).map(|r| {
-            println!(
-                "Kalman filter update {:.2} µs, bare MuJoCo step {:.2} µs: {:.2} bare steps",
-                r.update_us,
-                r.mujoco_step_us,
-                r.ratio()
-            );
-            println!("{}", r.json_line());
-        }),
+        } => eemp_cli::robot_arg::load_robot(robot.as_deref())
+            .and_then(|robot| eemp_cli::bench_estimator::bench_estimator(updates.max(1), &robot))
+            .map(|r| {
+                println!(
+                    "Kalman filter update {:.2} µs, bare MuJoCo step {:.2} µs: {:.2} bare steps",
+                    r.update_us,
+                    r.mujoco_step_us,
+                    r.ratio()
+                );
+                println!("{}", r.json_line());
+            }),
         Command::Model { robot, scenario } => (|| {
             let robot = match robot {
                 Some(p) => eemp_core::robot::RobotConfig::load(&p).map_err(|e| e.to_string())?,

@@ -296,7 +296,7 @@ fn bad_clips_and_motions_exit_2_name_the_file_frame_and_marker_and_write_nothing
 #[test]
 fn bad_hardware_input_exits_2_names_the_value_and_writes_nothing() {
     let dir = scratch("hw");
-    let cases: [(&[&str], &[&str]); 8] = [
+    let cases: [(&[&str], &[&str]); 12] = [
         (
             &["hw", "--dry-run", "--speed", "9"],
             &["--speed 9", "[-1.5, 1.5]"],
@@ -316,8 +316,38 @@ fn bad_hardware_input_exits_2_names_the_value_and_writes_nothing() {
                 "--dry-run",
                 "--robot",
                 concat!(env!("CARGO_MANIFEST_DIR"), "/../../robots/go2.toml"),
+                "--link",
+                "udp",
             ],
-            &["go2-dds", "sdk.protocol"],
+            &["--link udp", "'go2'", "go2-dds", "--link dds"],
+        ),
+        (
+            &["hw", "--link", "dds", "--speed", "0"],
+            &["'a1'", "a1-udp", "--link udp"],
+        ),
+        (
+            &[
+                "hw",
+                "--robot",
+                concat!(env!("CARGO_MANIFEST_DIR"), "/../../robots/go2.toml"),
+                "--domain",
+                "233",
+            ],
+            &["domain 233", "0..=232"],
+        ),
+        (
+            &[
+                "sim-robot",
+                "--robot",
+                concat!(env!("CARGO_MANIFEST_DIR"), "/../../robots/go2.toml"),
+                "--iface",
+                "nosuch0",
+            ],
+            &["'nosuch0'", "allowed"],
+        ),
+        (
+            &["sim-robot", "--low-level-mode"],
+            &["--low-level-mode", "DDS"],
         ),
         (
             &[

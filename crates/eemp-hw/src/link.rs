@@ -1,6 +1,7 @@
 //! A UDP endpoint that can misbehave on purpose: each datagram it sends may be dropped,
 //! corrupted (one byte flipped, so the CRC fails), delayed, or swapped with the next one.
-//! Seeded: the same faults for the same seed.
+//! Seeded: the same faults for the same seed. The faults themselves ([`FaultQueue`]) serve the
+//! DDS endpoint too.
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -53,15 +54,69 @@ pub struct LinkStats {
     pub corrupted: usize,
     pub reordered: usize,
     pub received: usize,
+    /// DDS: samples dropped because their writer announced another type name than the topic's
+    /// (RustDDS matches writers to readers by topic name alone), or was never announced.
+    pub wrong_type: usize,
+}
+
+/// The faults of one sending side, for any transport: what to lose, damage, delay or hold
+/// back, and the messages waiting for their time (with where each goes, `T`).
+pub struct FaultQueue<T> {
+    faults: Faults,
+    rng: ChaCha8Rng,
+    /// Messages waiting for their time: (release time, bytes, destination).
+    queue: VecDeque<(f64, Vec<u8>, T)>,
+    held: Option<(Vec<u8>, T)>,
+}
+
+impl<T> FaultQueue<T> {
+    pub fn new(faults: Faults) -> Self {
+        FaultQueue {
+            rng: ChaCha8Rng::seed_from_u64(faults.seed),
+            faults,
+            queue: VecDeque::new(),
+            held: None,
+        }
+    }
+
+    /// Takes one message at `now_s`: drops, damages, holds back or queues it.
+    pub fn push(&mut self, bytes: &[u8], to: T, now_s: f64, stats: &mut LinkStats) {
+        let f = &self.faults;
+        if f.drop_prob > 0.0 && self.rng.random::<f64>() < f.drop_prob {
+            stats.dropped += 1;
+            return;
+        }
+        let mut bytes = bytes.to_vec();
+        if f.corrupt_prob > 0.0 && self.rng.random::<f64>() < f.corrupt_prob && !bytes.is_empty() {
+            let i = self.rng.random_range(0..bytes.len());
+            bytes[i] ^= 0x5A;
+            stats.corrupted += 1;
+        }
+        if f.reorder_prob > 0.0 && self.held.is_none() && self.rng.random::<f64>() < f.reorder_prob
+        {
+            self.held = Some((bytes, to));
+            stats.reordered += 1;
+            return;
+        }
+        let release = now_s + f.delay_s;
+        self.queue.push_back((release, bytes, to));
+        if let Some((b, t)) = self.held.take() {
+            self.queue.push_back((release, b, t));
+        }
+    }
+
+    /// The next message due by `now_s`.
+    pub fn pop_due(&mut self, now_s: f64) -> Option<(Vec<u8>, T)> {
+        match self.queue.front() {
+            Some((t, _, _)) if *t <= now_s => self.queue.pop_front().map(|(_, b, to)| (b, to)),
+            _ => None,
+        }
+    }
 }
 
 pub struct Link {
     socket: UdpSocket,
-    faults: Faults,
-    rng: ChaCha8Rng,
-    /// Datagrams waiting for their time: (release time, bytes, destination).
-    queue: VecDeque<(f64, Vec<u8>, SocketAddr)>,
-    held: Option<(Vec<u8>, SocketAddr)>,
+    queue: FaultQueue<SocketAddr>,
     pub stats: LinkStats,
     buf: Vec<u8>,
 }
@@ -75,10 +130,7 @@ impl Link {
             .map_err(|e| format!("UDP {addr}: {e}"))?;
         Ok(Link {
             socket,
-            rng: ChaCha8Rng::seed_from_u64(faults.seed),
-            faults,
-            queue: VecDeque::new(),
-            held: None,
+            queue: FaultQueue::new(faults),
             stats: LinkStats::default(),
             buf: vec![0; 2048],
         })
@@ -90,38 +142,13 @@ impl Link {
 
     /// Sends (or, by the faults, loses, damages, delays or holds back) one datagram at `now_s`.
     pub fn send(&mut self, bytes: &[u8], to: SocketAddr, now_s: f64) {
-        let f = &self.faults;
-        if f.drop_prob > 0.0 && self.rng.random::<f64>() < f.drop_prob {
-            self.stats.dropped += 1;
-            return;
-        }
-        let mut bytes = bytes.to_vec();
-        if f.corrupt_prob > 0.0 && self.rng.random::<f64>() < f.corrupt_prob {
-            let i = self.rng.random_range(0..bytes.len());
-            bytes[i] ^= 0x5A;
-            self.stats.corrupted += 1;
-        }
-        if f.reorder_prob > 0.0 && self.held.is_none() && self.rng.random::<f64>() < f.reorder_prob
-        {
-            self.held = Some((bytes, to));
-            self.stats.reordered += 1;
-            return;
-        }
-        let release = now_s + f.delay_s;
-        self.queue.push_back((release, bytes, to));
-        if let Some((b, t)) = self.held.take() {
-            self.queue.push_back((release, b, t));
-        }
+        self.queue.push(bytes, to, now_s, &mut self.stats);
         self.flush(now_s);
     }
 
     /// Sends what is due by `now_s`.
     pub fn flush(&mut self, now_s: f64) {
-        while let Some((t, _, _)) = self.queue.front() {
-            if *t > now_s {
-                break;
-            }
-            let (_, b, to) = self.queue.pop_front().expect("checked");
+        while let Some((b, to)) = self.queue.pop_due(now_s) {
             // A full socket buffer or an unreachable peer loses the datagram, as UDP does.
             if self.socket.send_to(&b, to).is_ok() {
                 self.stats.sent += 1;

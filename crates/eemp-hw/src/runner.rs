@@ -1,4 +1,5 @@
-//! `eemp hw`: any [`Controller`] on an A1 through its legacy low-level UDP protocol.
+//! `eemp hw`: any [`Controller`] on an A1 through its legacy low-level UDP protocol, or on a
+//! Go2 through its low-level DDS interface (`rt/lowcmd` / `rt/lowstate`, [`crate::dds`]).
 //!
 //! Every cycle (500 Hz by default): read the state datagrams that arrived (bad CRC or length
 //! counted and dropped; a tick not newer than the last one — a late or reordered datagram —
@@ -10,13 +11,16 @@
 //! into damping. The controller's dynamics (mass matrix and bias of each leg, for the swing
 //! law) come from MuJoCo evaluated at the estimate — a model of the robot file, never stepped.
 
+use crate::dds::{DdsConfig, Go2Endpoint, Role};
 use crate::link::{Faults, Link, LinkStats};
+use crate::motion_switcher;
 use eemp_core::body_state::{BodyState, RobotState};
 use eemp_core::control::{ControlInput, Controller};
 use eemp_core::controller::feet_world;
 use eemp_core::estimator::{ContactTrust, EstimatorInput, KfConfig, LinearKf};
 use eemp_core::hardware::a1_protocol::LowState;
-use eemp_core::hardware::robot_io::{low_cmd, torque_command, SensedState};
+use eemp_core::hardware::go2_idl;
+use eemp_core::hardware::robot_io::{go2_low_cmd, low_cmd, torque_command, SensedState};
 use eemp_core::hardware::safety::{Damping, Intervention, RobotCommand, SafetyConfig, SafetyLayer};
 use eemp_core::kinematics::LegKinematics;
 use eemp_core::leg::{Leg, LegMap};
@@ -47,6 +51,14 @@ pub enum Transport {
         robot: SocketAddr,
         bind: SocketAddr,
         faults: Faults,
+    },
+    /// DDS to a Go2 (or `eemp sim-robot --link dds`), with faults on the commands written.
+    /// `release`: first ask the robot's motion-switcher service to release its sport mode
+    /// (refusing to start when it cannot); None for a robot already in low-level mode.
+    Dds {
+        config: DdsConfig,
+        faults: Faults,
+        release: Option<motion_switcher::ReleaseOptions>,
     },
     /// No socket: the robot is taken to stand still in `state` (the state datagram it would
     /// send), and the commands are only shown to the observer.
@@ -79,8 +91,20 @@ impl HwOptions {
         }
         self.safety.validate().map_err(|e| e.to_string())?;
         self.kf.validate().map_err(|e| e.to_string())?;
-        if let Transport::Udp { faults, .. } = &self.transport {
-            faults.validate("hw")?;
+        match &self.transport {
+            Transport::Udp { faults, .. } => faults.validate("hw")?,
+            Transport::Dds {
+                config,
+                faults,
+                release,
+            } => {
+                faults.validate("hw")?;
+                config.validate()?;
+                if let Some(r) = release {
+                    r.validate()?;
+                }
+            }
+            Transport::DryRun { .. } => {}
         }
         Ok(())
     }
@@ -119,6 +143,66 @@ pub struct HwReport {
     pub last_state_s: Option<f64>,
     pub latched: Option<String>,
     pub link: LinkStats,
+    /// What the motion switcher said before the start (DDS with release).
+    pub release: Option<String>,
+}
+
+/// The runner's end of the wire.
+enum Wire {
+    Udp(Box<Link>, SocketAddr),
+    Dds(Box<Go2Endpoint>),
+    DryRun,
+}
+
+impl Wire {
+    fn send(
+        &mut self,
+        cmd: &RobotCommand,
+        order: &eemp_core::robot::MotorOrder,
+        now: f64,
+    ) -> Result<(), String> {
+        match self {
+            Wire::Udp(l, to) => {
+                let bytes = low_cmd(cmd, order).encode().map_err(|e| e.to_string())?;
+                l.send(&bytes, *to, now);
+            }
+            Wire::Dds(e) => e.send(&go2_low_cmd(cmd, order).to_cdr(), now),
+            Wire::DryRun => {}
+        }
+        Ok(())
+    }
+
+    fn flush(&mut self, now: f64) {
+        match self {
+            Wire::Udp(l, _) => l.flush(now),
+            Wire::Dds(e) => e.flush(now),
+            Wire::DryRun => {}
+        }
+    }
+
+    fn stats(&self) -> LinkStats {
+        match self {
+            Wire::Udp(l, _) => l.stats,
+            Wire::Dds(e) => e.stats,
+            Wire::DryRun => LinkStats::default(),
+        }
+    }
+}
+
+/// A received state, decoded by the wire's protocol: (state, tick for ordering; 0 = none).
+/// A Go2 state with a CRC that does not match its contents is refused like a bad datagram.
+fn decode_go2(
+    bytes: &[u8],
+    order: &eemp_core::robot::MotorOrder,
+    now: f64,
+) -> Option<(SensedState, u32)> {
+    let s = go2_idl::LowState::from_cdr(bytes).ok()?;
+    s.check_crc().ok()?;
+    let mut sensed = SensedState::from_go2_low_state(&s, order);
+    // The Go2's tick unit is undocumented (and unitree_mujoco leaves it 0): the filter runs on
+    // the arrival clock instead.
+    sensed.tick_s = now;
+    Some((sensed, s.tick))
 }
 
 fn kind(i: &Intervention) -> &'static str {
@@ -168,11 +252,29 @@ pub fn run_hw(
     let order = robot.motor_order();
     let mut model = Simulation::new(robot, &Default::default()).map_err(|e| e.to_string())?;
     let mut safety = SafetyLayer::new(robot, opts.safety.clone()).map_err(|e| e.to_string())?;
-    let mut link = match &opts.transport {
-        Transport::Udp { bind, faults, .. } => Some(Link::bind(*bind, faults.clone())?),
-        Transport::DryRun { .. } => None,
-    };
     let mut report = HwReport::default();
+    let mut wire = match &opts.transport {
+        Transport::Udp {
+            bind,
+            faults,
+            robot,
+        } => Wire::Udp(Box::new(Link::bind(*bind, faults.clone())?), *robot),
+        Transport::Dds {
+            config,
+            faults,
+            release,
+        } => {
+            if let Some(r) = release {
+                report.release = Some(motion_switcher::release(config, r)?);
+            }
+            Wire::Dds(Box::new(Go2Endpoint::new(
+                config,
+                Role::Controller,
+                faults.clone(),
+            )?))
+        }
+        Transport::DryRun { .. } => Wire::DryRun,
+    };
     let period = 1.0 / opts.rate_hz;
     let wall0 = Instant::now();
     let mut kf: Option<LinearKf> = None;
@@ -192,41 +294,56 @@ pub fn run_hw(
         }
         // The newest state that arrived since the last cycle.
         let mut newest: Option<SensedState> = None;
-        let mut take = |bytes: &[u8], report: &mut HwReport| match LowState::decode(bytes) {
-            Ok(s) => {
-                // Newer in wrap-around arithmetic (the µs tick wraps after 71.6 min); a jump
-                // back by more than half the range is a restart of the robot's clock, taken as new.
-                if newest_tick.is_some_and(|t| {
-                    let d = s.tick.wrapping_sub(t) as i32;
+        let mut take = |decoded: Option<(SensedState, u32)>, report: &mut HwReport| {
+            let Some((sensed, tick)) = decoded else {
+                report.bad_datagrams += 1;
+                return;
+            };
+            // Newer in wrap-around arithmetic (the A1's µs tick wraps after 71.6 min); a jump
+            // back by more than half the range is a restart of the robot's clock, taken as new.
+            // A Go2 tick of 0 (unitree_mujoco) says nothing about order.
+            if tick != 0
+                && newest_tick.is_some_and(|t| {
+                    let d = tick.wrapping_sub(t) as i32;
                     d <= 0 && d > -1_000_000
-                }) {
-                    report.stale_states += 1;
-                    return;
-                }
-                let sensed = SensedState::from_low_state(&s, &order);
-                if !sensed.is_finite() {
-                    report.bad_datagrams += 1;
-                    return;
-                }
-                newest_tick = Some(s.tick);
-                report.states += 1;
-                newest = Some(sensed);
+                })
+            {
+                report.stale_states += 1;
+                return;
             }
-            Err(_) => report.bad_datagrams += 1,
+            if !sensed.is_finite() {
+                report.bad_datagrams += 1;
+                return;
+            }
+            if tick != 0 {
+                newest_tick = Some(tick);
+            }
+            report.states += 1;
+            newest = Some(sensed);
         };
-        match (&mut link, &opts.transport) {
-            (Some(l), _) => {
+        let a1 = |bytes: &[u8]| {
+            LowState::decode(bytes)
+                .ok()
+                .map(|s| (SensedState::from_low_state(&s, &order), s.tick))
+        };
+        match (&mut wire, &opts.transport) {
+            (Wire::Udp(l, _), _) => {
                 while let Some((bytes, _)) = l.recv() {
-                    take(&bytes, &mut report);
+                    take(a1(&bytes), &mut report);
                 }
             }
-            (None, Transport::DryRun { state }) => {
+            (Wire::Dds(e), _) => {
+                while let Some(bytes) = e.recv() {
+                    take(decode_go2(&bytes, &order, now), &mut report);
+                }
+            }
+            (Wire::DryRun, Transport::DryRun { state }) => {
                 let mut s = (**state).clone();
                 s.tick = (now * 1e6) as u32 + 1;
                 let bytes = s.encode().map_err(|e| e.to_string())?;
-                take(&bytes, &mut report);
+                take(a1(&bytes), &mut report);
             }
-            (None, Transport::Udp { .. }) => unreachable!("a UDP transport has a link"),
+            (Wire::DryRun, _) => unreachable!("only a dry run has no wire"),
         }
         let fresh = newest.is_some();
         let mut spike_now: Option<TorqueSpike> = None;
@@ -314,10 +431,7 @@ pub fn run_hw(
                 report.first_watchdog_s = Some(now);
             }
         }
-        let bytes = low_cmd(&sent, &order).encode().map_err(|e| e.to_string())?;
-        if let (Some(l), Transport::Udp { robot, .. }) = (&mut link, &opts.transport) {
-            l.send(&bytes, *robot, now);
-        }
+        wire.send(&sent, &order, now)?;
         observer(&HwCycle {
             t_s: now,
             estimate: estimate.as_ref(),
@@ -343,17 +457,12 @@ pub fn run_hw(
     // Leaving: the motors keep the last command they got, so the last ones are damping.
     safety.estop();
     let (damp, _) = safety.filter(wall0.elapsed().as_secs_f64(), &cmd);
-    let bytes = low_cmd(&damp, &order).encode().map_err(|e| e.to_string())?;
-    if let (Some(l), Transport::Udp { robot, .. }) = (&mut link, &opts.transport) {
-        for _ in 0..5 {
-            let now = wall0.elapsed().as_secs_f64();
-            l.send(&bytes, *robot, now);
-            l.flush(now + 1.0);
-            std::thread::sleep(Duration::from_millis(1));
-        }
+    for _ in 0..5 {
+        let now = wall0.elapsed().as_secs_f64();
+        wire.send(&damp, &order, now)?;
+        wire.flush(now + 1.0);
+        std::thread::sleep(Duration::from_millis(1));
     }
-    if let Some(l) = link {
-        report.link = l.stats;
-    }
+    report.link = wire.stats();
     Ok(report)
 }

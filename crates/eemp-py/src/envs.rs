@@ -77,8 +77,8 @@ fn task_config(task: &str, config: Option<&Path>, num_envs: usize) -> PyResult<T
     Ok(c)
 }
 
-/// Builds the task's environments; an imitation task gets `motion` (a file) or, without a
-/// config naming one, the shipped trot.
+/// Builds the task's environments on `robot` (a robot file; None: the A1); an imitation task
+/// gets `motion` (a file) or, without a config naming one, the shipped trot.
 pub fn build(
     task: &str,
     num_envs: usize,
@@ -86,6 +86,7 @@ pub fn build(
     threads: usize,
     config: Option<&Path>,
     motion: Option<&Path>,
+    robot: Option<&Path>,
 ) -> PyResult<(AnyVecEnv, TrainConfig)> {
     if !(1..=1024).contains(&threads) {
         return Err(value_error(format!(
@@ -100,7 +101,7 @@ pub fn build(
             c.task.name()
         )));
     }
-    let robot = RobotConfig::a1();
+    let robot = RobotConfig::load_or_a1(robot).map_err(value_error)?;
     let m = if c.task != TaskKind::Imitation {
         None
     } else if let Some(p) = motion {
@@ -159,7 +160,7 @@ impl PyVecEnv {
 #[pymethods]
 impl PyVecEnv {
     #[new]
-    #[pyo3(signature = (task, num_envs = 1, seed = 0, threads = 1, config = None, motion = None))]
+    #[pyo3(signature = (task, num_envs = 1, seed = 0, threads = 1, config = None, motion = None, robot = None))]
     fn new(
         task: &str,
         num_envs: usize,
@@ -167,6 +168,7 @@ impl PyVecEnv {
         threads: usize,
         config: Option<PathBuf>,
         motion: Option<PathBuf>,
+        robot: Option<PathBuf>,
     ) -> PyResult<Self> {
         let (v, c) = build(
             task,
@@ -175,6 +177,7 @@ impl PyVecEnv {
             threads,
             config.as_deref(),
             motion.as_deref(),
+            robot.as_deref(),
         )?;
         let (obs_dim, act_dim, terms) =
             with_env!(&v, e => (e.obs_dim(), e.act_dim(), e.reward_terms()));
@@ -356,7 +359,7 @@ pub fn rust_rollout<'py>(
         unreachable!("a 3-d array")
     };
     let acts = actions.as_array().to_owned();
-    let (mut any, _) = build(task, n, seed, 1, config.as_deref(), None)?;
+    let (mut any, _) = build(task, n, seed, 1, config.as_deref(), None, None)?;
     let act_dim = with_env!(&any, v => v.act_dim());
     if width != act_dim {
         return Err(value_error(format!(
@@ -408,7 +411,7 @@ pub fn rust_stepping_rate(
     threads: usize,
     seed: u64,
 ) -> PyResult<f64> {
-    let (mut any, _) = build(task, num_envs, seed, threads, None, None)?;
+    let (mut any, _) = build(task, num_envs, seed, threads, None, None, None)?;
     py.detach(|| {
         with_env!(&mut any, v => {
             let actions = random_actions(v.len() * v.act_dim(), steps, 3);

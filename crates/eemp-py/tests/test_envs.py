@@ -185,3 +185,18 @@ def test_seeds_of_the_vector_env():
         v.reset(seed=[1, 2, 3])
     first = [eemp.make_vec_env("A1ModelFree-v0", 2).reset()[0] for _ in range(2)]
     assert not np.array_equal(first[0], first[1]), "unseeded first resets draw their seeds"
+
+
+def test_a_robot_file_makes_the_task_that_robots():
+    import pathlib
+
+    go2 = str(pathlib.Path(__file__).resolve().parents[3] / "robots/go2.toml")
+    a1, other = eemp.make_env("A1ModelFree-v0"), eemp.make_env("A1ModelFree-v0", robot=go2)
+    zero = np.zeros(12, dtype=np.float32)
+    a1.reset(seed=4)
+    other.reset(seed=4)
+    (o_a1, *_), (o_go2, *_) = a1.step(zero), other.step(zero)
+    # Same seed and action, another body: the Go2 (15 kg, its own pose) moves otherwise.
+    assert o_a1.shape == o_go2.shape and not np.array_equal(o_a1, o_go2)
+    with pytest.raises(ValueError, match="nosuch.toml"):
+        eemp.make_env("A1ModelFree-v0", robot="nosuch.toml")

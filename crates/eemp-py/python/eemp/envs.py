@@ -66,13 +66,20 @@ class A1Env(gym.Env):
 
     `config`: a training config TOML (as `eemp train --config`, e.g. policies/a1_model_free.toml)
     for the task's settings; `motion`: the imitation task's reference motion file (default: the
-    shipped `motions/a1_trot.csv`, built into the package).
+    shipped `motions/a1_trot.csv`, built into the package); `robot`: a robot file
+    (robots/go2.toml, robots/go1.toml, your own; default the A1), as `eemp train --robot`.
     """
 
     metadata = {"render_modes": []}
 
-    def __init__(self, task: str = "A1ModelFree-v0", config: str | None = None, motion: str | None = None):
-        self._v = _eemp.VecEnv(_task(task), num_envs=1, seed=0, threads=1, config=config, motion=motion)
+    def __init__(
+        self,
+        task: str = "A1ModelFree-v0",
+        config: str | None = None,
+        motion: str | None = None,
+        robot: str | None = None,
+    ):
+        self._v = _eemp.VecEnv(_task(task), num_envs=1, seed=0, threads=1, config=config, motion=motion, robot=robot)
         self.observation_space, self.action_space = _spaces(self._v)
         self.reward_terms = self._v.reward_terms
         self._episode_started_by_rust = False
@@ -116,6 +123,7 @@ class A1VectorEnv(gym.vector.VectorEnv):
         threads: int | None = None,
         config: str | None = None,
         motion: str | None = None,
+        robot: str | None = None,
     ):
         if not isinstance(num_envs, (int, np.integer)) or not 1 <= num_envs <= 65536:
             raise ValueError(f"num_envs {num_envs!r} is out of range: allowed an int in [1, 65536]")
@@ -123,7 +131,7 @@ class A1VectorEnv(gym.vector.VectorEnv):
             threads = min(num_envs, os.cpu_count() or 1)
         elif not isinstance(threads, (int, np.integer)) or not 1 <= threads <= 1024:
             raise ValueError(f"threads {threads!r} is out of range: allowed an int in [1, 1024]")
-        self._v = _eemp.VecEnv(_task(task), num_envs=num_envs, seed=0, threads=threads, config=config, motion=motion)
+        self._v = _eemp.VecEnv(_task(task), num_envs=num_envs, seed=0, threads=threads, config=config, motion=motion, robot=robot)
         self.num_envs = num_envs
         self.single_observation_space, self.single_action_space = _spaces(self._v)
         self.observation_space = batch_space(self.single_observation_space, num_envs)
