@@ -57,7 +57,7 @@ pub enum LowLevelProtocol {
     /// The A1's UDP datagrams (unitree_legged_sdk 3.3), the project's `a1_protocol`.
     #[default]
     A1Udp,
-    /// unitree_sdk2's DDS topics rt/lowcmd / rt/lowstate (the Go2); no codec in the project yet.
+    /// unitree_sdk2's DDS topics rt/lowcmd / rt/lowstate (the Go2): `eemp_core::hardware::go2_idl`, `eemp_hw::dds`.
     Go2Dds,
     /// No codec the project can check against the real robot (the Go1's UDP wire format is
     /// known only from third-party reverse engineering): simulation only.
