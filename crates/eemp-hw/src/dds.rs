@@ -193,20 +193,29 @@ pub fn reader_qos() -> QosPolicies {
         .build()
 }
 
-/// A writer of raw CDR samples on `topic` (type `type_name`), reliable as Cyclone's default.
-pub fn raw_writer(
+/// The no-key topic `topic` of type `type_name` (its QoS: Cyclone's default writer's).
+fn raw_topic(
     participant: &DomainParticipant,
     topic: &str,
     type_name: &str,
-) -> Result<DataWriter<CdrBytes, RawCdr>, String> {
-    let t = participant
+) -> Result<rustdds::Topic, String> {
+    participant
         .create_topic(
             topic.into(),
             type_name.into(),
             &writer_qos(),
             TopicKind::NoKey,
         )
-        .map_err(|e| format!("cannot create DDS topic {topic}: {e}"))?;
+        .map_err(|e| format!("cannot create DDS topic {topic}: {e}"))
+}
+
+/// A writer of raw CDR samples on `topic` (type `type_name`), reliable as Cyclone's default.
+pub fn raw_writer(
+    participant: &DomainParticipant,
+    topic: &str,
+    type_name: &str,
+) -> Result<DataWriter<CdrBytes, RawCdr>, String> {
+    let t = raw_topic(participant, topic, type_name)?;
     participant
         .create_publisher(&writer_qos())
         .map_err(|e| format!("cannot create a DDS publisher: {e}"))?
@@ -221,14 +230,7 @@ pub fn raw_reader(
     type_name: &str,
     qos: QosPolicies,
 ) -> Result<DataReader<CdrBytes, RawCdr>, String> {
-    let t = participant
-        .create_topic(
-            topic.into(),
-            type_name.into(),
-            &writer_qos(),
-            TopicKind::NoKey,
-        )
-        .map_err(|e| format!("cannot create DDS topic {topic}: {e}"))?;
+    let t = raw_topic(participant, topic, type_name)?;
     participant
         .create_subscriber(&qos)
         .map_err(|e| format!("cannot create a DDS subscriber: {e}"))?
@@ -269,48 +271,24 @@ impl Go2Endpoint {
     pub fn new(cfg: &DdsConfig, role: Role, faults: Faults) -> Result<Self, String> {
         faults.validate("dds")?;
         let participant = cfg.participant()?;
-        let topic = |name: &str, type_name: &str| {
-            participant
-                .create_topic(
-                    name.into(),
-                    type_name.into(),
-                    &writer_qos(),
-                    TopicKind::NoKey,
-                )
-                .map_err(|e| format!("cannot create DDS topic {name}: {e}"))
-        };
-        let cmd = topic(TOPIC_LOWCMD, LOW_CMD_TYPE_NAME)?;
-        let state = topic(TOPIC_LOWSTATE, LOW_STATE_TYPE_NAME)?;
-        let (out, inp, out_name, in_name, in_type) = match role {
+        let (out_name, out_type, in_name, in_type) = match role {
             Role::Controller => (
-                &cmd,
-                &state,
                 TOPIC_LOWCMD,
+                LOW_CMD_TYPE_NAME,
                 TOPIC_LOWSTATE,
                 LOW_STATE_TYPE_NAME,
             ),
             Role::Robot => (
-                &state,
-                &cmd,
                 TOPIC_LOWSTATE,
+                LOW_STATE_TYPE_NAME,
                 TOPIC_LOWCMD,
                 LOW_CMD_TYPE_NAME,
             ),
         };
         // Before any reader exists, so no writer's discovery can be missed.
         let status = participant.status_listener();
-        let publisher = participant
-            .create_publisher(&writer_qos())
-            .map_err(|e| format!("cannot create a DDS publisher: {e}"))?;
-        let subscriber = participant
-            .create_subscriber(&reader_qos())
-            .map_err(|e| format!("cannot create a DDS subscriber: {e}"))?;
-        let writer = publisher
-            .create_datawriter_no_key::<CdrBytes, RawCdr>(out, Some(writer_qos()))
-            .map_err(|e| format!("cannot create a DDS writer on {out_name}: {e}"))?;
-        let reader = subscriber
-            .create_datareader_no_key::<CdrBytes, RawCdr>(inp, Some(reader_qos()))
-            .map_err(|e| format!("cannot create a DDS reader on {in_name}: {e}"))?;
+        let writer = raw_writer(&participant, out_name, out_type)?;
+        let reader = raw_reader(&participant, in_name, in_type, reader_qos())?;
         Ok(Go2Endpoint {
             writer,
             reader,
