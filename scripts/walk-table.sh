@@ -1,11 +1,14 @@
 #!/usr/bin/env bash
-# The walking table of issue 3: 20 s runs per gait and speed with Table II parameters.
+# The walking table of issue 3: 20 s runs per gait and speed with Table II parameters
+# (`--table-ii`; give other `eemp walk` options, e.g. `--estimator kf --table-ii`, to replace it;
+# no option of that kind walks each gait's shipped table, `eemp walk`'s default).
 # Usage: scripts/walk-table.sh [eemp binary] [output folder] [extra `eemp walk` options...]
 # (prints a Markdown table)
 set -euo pipefail
 eemp="${1:-target/release/eemp}"
 out="${2:-out/walk-table}"
 shift $(( $# < 2 ? $# : 2 ))
+if [ $# -eq 0 ]; then set -- --table-ii; fi
 echo "| gait | speed m/s | fell | vel RMSE m/s | CoT | CoT J/m | manipulability | steps | all-stance | RTF |"
 echo "|---|---|---|---|---|---|---|---|---|---|"
 for gait in trot free walk; do

@@ -42,6 +42,13 @@ const PARTS: &[Part] = &[
         sections: &["Paper vs this project"],
     },
     Part {
+        heading: "Why the trot and walk gains and the walk's energy do not reproduce",
+        stage: "sensitivity",
+        report: "reports/sensitivity",
+        figures: &["sensitivity.png"],
+        sections: &["What moves each figure"],
+    },
+    Part {
         heading: "Figs. 7 and 9: EEMP against the learned controllers",
         stage: "compare",
         report: "reports/compare",

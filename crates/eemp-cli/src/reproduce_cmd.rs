@@ -26,10 +26,15 @@ pub struct ReproduceArgs {
     /// checks that it works end to end; its manifests say `quick = true`.
     #[arg(long)]
     pub quick: bool,
-    /// Run only the K-th of N slices of the shardable stages' long steps (sweeps), into
-    /// `out/reproduce/<stage>/shard-K-of-N`; merge with `eemp sweep merge`, then run the stage.
+    /// Run only the K-th of N slices of the shardable stages' long steps (sweeps and suites),
+    /// into `out/reproduce/<stage>/shard-K-of-N`; merge (`eemp sweep merge`, or the suite's
+    /// command with `--merge-from`), then run the stage (`scripts/reproduce-slurm.sh`).
     #[arg(long, value_name = "K/N")]
     pub shard: Option<String>,
+    /// Before running, gather the N shard folders of every selected shardable stage (written
+    /// by `--shard K/N`, K = 1…N) into the folder its full step writes; then run as usual.
+    #[arg(long, value_name = "N", conflicts_with = "shard")]
+    pub merge_shards: Option<usize>,
     /// List the artifacts whose inputs changed since their manifest (in --out, default `.`) and
     /// exit with status 1 if any did (`--record` and `--check` work on `.` without --out).
     #[arg(long)]
@@ -67,6 +72,9 @@ pub fn run(args: &ReproduceArgs) -> Result<bool, String> {
         .to_path_buf();
     let stages = pipeline.select(&args.stages).map_err(|e| e.to_string())?;
     let shard = args.shard.as_deref().map(parse_shard).transpose()?;
+    if args.merge_shards == Some(0) {
+        return Err("--merge-shards 0 is out of range: allowed ≥ 1".into());
+    }
     if args.list {
         list(&pipeline, &stages);
         return Ok(true);
@@ -92,6 +100,11 @@ pub fn run(args: &ReproduceArgs) -> Result<bool, String> {
         }
     }
     prepare_root(&root, &repo, &pipeline, &stages)?;
+    if let Some(n) = args.merge_shards {
+        for stage in stages.iter().filter(|s| s.shardable()) {
+            run_actions(&root, stage, &stage.merge_actions(args.quick, n))?;
+        }
+    }
     let mut timings = Vec::new();
     for stage in &stages {
         if let Some((k, n)) = shard {
@@ -101,8 +114,8 @@ pub fn run(args: &ReproduceArgs) -> Result<bool, String> {
             }
             run_actions(&root, stage, &stage.actions(args.quick, Some((k, n))))?;
             println!(
-                "[{}] shard {k}/{n} done; merge the shards (eemp sweep merge …) into {} and run \
-                 this stage without --shard",
+                "[{}] shard {k}/{n} done; merge the shards into {} (eemp sweep merge …, or \
+                 eemp compare|robustness … --merge-from …) and run this stage without --shard",
                 stage.name,
                 stage.work_dir()
             );

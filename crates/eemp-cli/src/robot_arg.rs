@@ -37,7 +37,7 @@ pub fn robot_json(robot: &RobotConfig, allow_mismatch: bool) -> serde_json::Valu
     })
 }
 
-/// Where a robot's per-speed table of `gait` is shipped: `tables/<robot>_<gait>.toml`.
+/// Where a robot's per-speed table of `gait` is shipped ([`RobotConfig::shipped_table_path`]).
 pub fn shipped_table_path(robot: &RobotConfig, gait: eemp_core::planner::Gait) -> PathBuf {
-    PathBuf::from(format!("tables/{}_{gait}.toml", robot.name))
+    robot.shipped_table_path(gait)
 }

@@ -21,12 +21,8 @@ pub struct StandArgs {
     /// default: ±3 cm x/y/z and ±0.15 rad roll/pitch/yaw, one at a time.
     #[arg(long)]
     pub profile: Option<PathBuf>,
-    /// Apply a push at this time (s): a sudden change of the trunk velocity.
-    #[arg(long)]
-    pub push_at: Option<f64>,
-    /// Lateral (world y) velocity change of the push, m/s.
-    #[arg(long, default_value_t = 0.3)]
-    pub push_dv: f64,
+    #[command(flatten)]
+    pub push: crate::push_arg::PushArgs,
     /// Time between MPC solves, s (standing is quasi-static: 20 ms tracks as well as 10 ms at
     /// half the cost).
     #[arg(long, default_value_t = 0.02)]
@@ -63,20 +59,20 @@ pub fn run(args: &StandArgs) -> Result<(), String> {
     };
     profile.validate().map_err(|e| e.to_string())?;
     let mut pushes = Vec::new();
-    if let Some(at) = args.push_at {
+    if let Some(at) = args.push.push_at {
         if !(at.is_finite() && at >= 0.0 && at < args.duration) {
             return Err(format!(
                 "--push-at {at} is out of range: allowed [0, duration {})",
                 args.duration
             ));
         }
-        if !(args.push_dv.is_finite() && args.push_dv.abs() <= 3.0) {
+        if !(args.push.push_dv.is_finite() && args.push.push_dv.abs() <= 3.0) {
             return Err(format!(
                 "--push-dv {} is out of range: allowed [-3, 3] m/s",
-                args.push_dv
+                args.push.push_dv
             ));
         }
-        pushes.push(Push::step(at, Vector3::new(0.0, args.push_dv, 0.0)));
+        pushes.push(Push::step(at, Vector3::new(0.0, args.push.push_dv, 0.0)));
     }
     if !(args.trace_hz.is_finite() && args.trace_hz > 0.0 && args.trace_hz <= 1000.0) {
         return Err(format!(

@@ -64,6 +64,9 @@ pub struct MethodConfig {
     /// default; `{ pair_tolerance = 0.0, support_check = false }` is the earlier rule).
     #[serde(default)]
     pub free_pairing: Option<FreePairing>,
+    /// EEMP: the MPC's horizon in steps of its dt (absent: `MpcConfig`'s default).
+    #[serde(default)]
+    pub mpc_horizon: Option<usize>,
 }
 
 impl MethodConfig {
@@ -114,6 +117,7 @@ impl MethodConfig {
             }));
             d.adapt_friction = self.adapt_friction;
             d.initial_friction = self.initial_friction;
+            d.mpc_horizon = self.mpc_horizon;
             if let Some(f) = self.ellipse_friction_factor {
                 d.ellipse_friction_factor = f;
             }
@@ -402,6 +406,7 @@ impl SuiteConfig {
                             "ellipse_friction_factor",
                         ),
                         (m.free_pairing.is_some(), "free_pairing"),
+                        (m.mpc_horizon.is_some(), "mpc_horizon"),
                     ] {
                         if set {
                             return Err(format!(
@@ -574,16 +579,9 @@ pub fn load_rows(path: &Path) -> Result<Vec<SuiteRow>, String> {
     Ok(rows)
 }
 
-/// Runs every run of `cfg` that `dir/results.csv` does not hold yet; returns all rows.
-pub fn run_suite(
-    cfg: &SuiteConfig,
-    dir: &Path,
-    threads: usize,
-    on_row: &(dyn Fn(&SuiteRow, usize, usize) + Sync),
-) -> Result<Vec<SuiteRow>, String> {
-    cfg.validate()?;
+/// Refuses a folder that holds another suite; stores `cfg` in a new one.
+fn claim_folder(cfg: &SuiteConfig, dir: &Path) -> Result<(), String> {
     std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
-    let text = toml::to_string(cfg).map_err(|e| e.to_string())?;
     let stored = dir.join(CONFIG);
     if stored.exists() {
         let old: SuiteConfig =
@@ -595,23 +593,91 @@ pub fn run_suite(
             ));
         }
     } else {
+        let text = toml::to_string(cfg).map_err(|e| e.to_string())?;
         std::fs::write(&stored, &text)
             .map_err(|e| format!("cannot write {}: {e}", stored.display()))?;
     }
-    let path = dir.join(RESULTS);
-    let mut rows = load_rows(&path)?;
-    // Rewrite without a partial line or failed rows, then append.
+    Ok(())
+}
+
+/// Writes `rows` as `path` (header first), atomically.
+fn write_rows(path: &Path, rows: &[SuiteRow]) -> Result<(), String> {
     let mut w = csv::Writer::from_writer(Vec::new());
-    for r in &rows {
+    for r in rows {
         w.serialize(r).map_err(|e| e.to_string())?;
     }
     let mut body = w.into_inner().map_err(|e| e.to_string())?;
     if rows.is_empty() {
         body = format!("{HEADER}\n").into_bytes();
     }
-    eemp_study::store::write_atomic(&path, &body).map_err(|e| e.to_string())?;
+    eemp_study::store::write_atomic(path, &body).map_err(|e| e.to_string())
+}
+
+/// Takes the results of shard folders of `cfg` into `dir` (a run `dir` already holds is kept);
+/// returns how many runs were added. A folder of another suite is refused, before anything is
+/// written.
+pub fn merge_rows(cfg: &SuiteConfig, shards: &[PathBuf], dir: &Path) -> Result<usize, String> {
+    let mut taken = Vec::new();
+    for s in shards {
+        let stored = s.join(CONFIG);
+        let theirs: SuiteConfig = eemp_core::config_error::load_toml(&stored)
+            .map_err(|e| format!("{} is not a shard of this suite: {e}", s.display()))?;
+        if &theirs != cfg {
+            return Err(format!(
+                "{} holds a suite with another config than this one; merge shards of one suite",
+                s.display()
+            ));
+        }
+        taken.extend(load_rows(&s.join(RESULTS))?);
+    }
+    claim_folder(cfg, dir)?;
+    let path = dir.join(RESULTS);
+    let mut rows = load_rows(&path)?;
+    let mut done: std::collections::BTreeSet<String> =
+        rows.iter().map(|r| r.run_id.clone()).collect();
+    let before = rows.len();
+    for r in taken {
+        if done.insert(r.run_id.clone()) {
+            rows.push(r);
+        }
+    }
+    write_rows(&path, &rows)?;
+    Ok(rows.len() - before)
+}
+
+/// Runs every run of `cfg` that `dir/results.csv` does not hold yet; returns all rows.
+pub fn run_suite(
+    cfg: &SuiteConfig,
+    dir: &Path,
+    threads: usize,
+    on_row: &(dyn Fn(&SuiteRow, usize, usize) + Sync),
+) -> Result<Vec<SuiteRow>, String> {
+    run_suite_shard(cfg, dir, threads, None, on_row)
+}
+
+/// [`run_suite`] for the runs of shard `k` of `n` (1-based; run i belongs to shard i mod n + 1,
+/// as a sweep's), or all of them.
+pub fn run_suite_shard(
+    cfg: &SuiteConfig,
+    dir: &Path,
+    threads: usize,
+    shard: Option<(usize, usize)>,
+    on_row: &(dyn Fn(&SuiteRow, usize, usize) + Sync),
+) -> Result<Vec<SuiteRow>, String> {
+    cfg.validate()?;
+    claim_folder(cfg, dir)?;
+    let path = dir.join(RESULTS);
+    let mut rows = load_rows(&path)?;
+    // Rewrite without a partial line or failed rows, then append.
+    write_rows(&path, &rows)?;
     let done: std::collections::BTreeSet<String> = rows.iter().map(|r| r.run_id.clone()).collect();
-    let all = cfg.runs()?;
+    let all: Vec<SuiteRun> = cfg
+        .runs()?
+        .into_iter()
+        .enumerate()
+        .filter(|(i, _)| shard.is_none_or(|(k, n)| i % n + 1 == k))
+        .map(|(_, r)| r)
+        .collect();
     let total = all.len();
     let todo: Vec<SuiteRun> = all
         .into_iter()

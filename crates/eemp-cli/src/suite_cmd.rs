@@ -2,7 +2,7 @@
 //! (methods across scenarios): suites of walks (`crate::suite`) and their reports.
 
 use crate::plots::{grouped_bars, line_panels, Band, BarPanel, Panel, Series};
-use crate::suite::{run_suite, MethodConfig, SuiteConfig, SuiteRow};
+use crate::suite::{merge_rows, run_suite_shard, MethodConfig, SuiteConfig, SuiteRow};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -30,6 +30,14 @@ pub struct SuiteArgs {
     /// result: the first seed only, runs of at most 4 s.
     #[arg(long)]
     pub quick: bool,
+    /// Run only the K-th of N disjoint slices of the run list (1-based, e.g. 3/8), into --out,
+    /// without a report: one folder per shard, then a run with --merge-from (a cluster array).
+    #[arg(long, value_name = "K/N")]
+    pub shard: Option<String>,
+    /// Shard folders of this suite (same config) whose results --out takes before it runs what
+    /// is still missing and writes the report.
+    #[arg(long, value_name = "DIR", num_args = 1.., conflicts_with = "shard")]
+    pub merge_from: Vec<PathBuf>,
 }
 
 /// Mean, min and max over the runs that did not fall; falls and runs.
@@ -228,10 +236,17 @@ fn threads(args: &SuiteArgs) -> usize {
     })
 }
 
-fn run(args: &SuiteArgs, default: &str) -> Result<(SuiteConfig, Vec<SuiteRow>), String> {
+/// Runs the suite's missing runs (of one shard under --shard); the config and every row, or
+/// `None` after a shard (its report waits for the merge).
+fn run(args: &SuiteArgs, default: &str) -> Result<Option<(SuiteConfig, Vec<SuiteRow>)>, String> {
     if args.threads == Some(0) {
         return Err("--threads 0 is out of range: allowed ≥ 1".into());
     }
+    let shard = args
+        .shard
+        .as_deref()
+        .map(eemp_study::pipeline::parse_shard)
+        .transpose()?;
     let path = args
         .config
         .clone()
@@ -249,6 +264,14 @@ fn run(args: &SuiteArgs, default: &str) -> Result<(SuiteConfig, Vec<SuiteRow>), 
     }
     cfg.validate()
         .map_err(|e| format!("{}: {e}", path.display()))?;
+    if !args.merge_from.is_empty() {
+        let n = merge_rows(&cfg, &args.merge_from, &args.out)?;
+        eprintln!(
+            "took {n} run(s) from {} shard folder(s) into {}",
+            args.merge_from.len(),
+            args.out.display()
+        );
+    }
     let total = cfg.runs()?.len();
     let bar = ProgressBar::new(total as u64);
     bar.set_style(
@@ -256,7 +279,7 @@ fn run(args: &SuiteArgs, default: &str) -> Result<(SuiteConfig, Vec<SuiteRow>), 
             .expect("valid template"),
     );
     let t0 = std::time::Instant::now();
-    let rows = run_suite(&cfg, &args.out, threads(args), &|_, n, _| {
+    let rows = run_suite_shard(&cfg, &args.out, threads(args), shard, &|_, n, _| {
         bar.set_position(n as u64)
     })?;
     bar.finish_and_clear();
@@ -266,7 +289,15 @@ fn run(args: &SuiteArgs, default: &str) -> Result<(SuiteConfig, Vec<SuiteRow>), 
         args.out.display(),
         t0.elapsed().as_secs_f64()
     );
-    Ok((cfg, rows))
+    if let Some((k, n)) = shard {
+        println!(
+            "shard {k}/{n} done in {}; when every shard is: the same command without --shard, \
+             with --merge-from <the shard folders> --out <the report folder>",
+            args.out.display()
+        );
+        return Ok(None);
+    }
+    Ok(Some((cfg, rows)))
 }
 
 fn f3(v: f64) -> String {
@@ -461,7 +492,9 @@ fn params_figure(
 }
 
 pub fn compare(args: &SuiteArgs) -> Result<(), String> {
-    let (cfg, rows) = run(args, "suites/compare.toml")?;
+    let Some((cfg, rows)) = run(args, "suites/compare.toml")? else {
+        return Ok(());
+    };
     let cells = aggregate(&rows);
     let scen = cfg.scenarios[0].name.clone();
     let speeds: Vec<f64> = cfg.scenarios[0].speeds()?;
@@ -780,7 +813,9 @@ fn rl_against_table<'a>(
 }
 
 pub fn robustness(args: &SuiteArgs) -> Result<(), String> {
-    let (cfg, rows) = run(args, "suites/robustness.toml")?;
+    let Some((cfg, rows)) = run(args, "suites/robustness.toml")? else {
+        return Ok(());
+    };
     let cells = aggregate(&rows);
     let methods: Vec<String> = cfg.methods.iter().map(|m| m.name.clone()).collect();
     // One category per scenario and speed.

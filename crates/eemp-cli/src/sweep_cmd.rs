@@ -54,6 +54,19 @@ pub enum SweepAction {
         #[arg(long, value_name = "DIR")]
         tables_out: Option<PathBuf>,
     },
+    /// The paper's figures that do not reproduce (trot and walk gains of the per-speed table,
+    /// walk/trot energy) under each modelling choice: one finished sweep folder per simulation
+    /// choice (joint damping, MPC weights: settings of its grid), each analysed under three CoT
+    /// definitions and three constants. Writes report.md, report.html, sensitivity.csv/.png.
+    Sensitivity {
+        /// Finished sweep folders of one grid, differing only in joint_damping_nms and
+        /// mpc_weights; the first is the reference.
+        #[arg(required = true, num_args = 1..)]
+        dirs: Vec<PathBuf>,
+        /// Report folder.
+        #[arg(long)]
+        out: PathBuf,
+    },
 }
 
 pub fn run(args: &SweepArgs) -> Result<(), String> {
@@ -80,6 +93,11 @@ pub fn run(args: &SweepArgs) -> Result<(), String> {
         }
         Some(SweepAction::Report { dir, tables_out }) => {
             let written = crate::sweep_report::write_report(dir, tables_out.as_deref())?;
+            println!("wrote {}", written.join(", "));
+            Ok(())
+        }
+        Some(SweepAction::Sensitivity { dirs, out }) => {
+            let written = crate::sensitivity_report::write(dirs, out)?;
             println!("wrote {}", written.join(", "));
             Ok(())
         }

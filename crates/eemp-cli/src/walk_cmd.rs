@@ -36,15 +36,8 @@ pub struct WalkArgs {
     /// Simulated seconds.
     #[arg(long, default_value_t = 20.0)]
     pub duration: f64,
-    /// Planner parameters (TOML, the five of Table I); default: the paper's Table II.
-    #[arg(long)]
-    pub params: Option<PathBuf>,
-    /// EEMP-Analytical: a per-speed parameter table (tables/<robot>_<gait>.toml) used in place of --params.
-    #[arg(long, conflicts_with = "params")]
-    pub params_table: Option<PathBuf>,
-    /// Factor on V·ΔT in eq. (6): 0.5 = eq. (6), 1.0 = Algorithm 1 (default: the table's, else 0.5).
-    #[arg(long)]
-    pub progress_factor: Option<f64>,
+    #[command(flatten)]
+    pub params: crate::params_arg::ParamsArgs,
     /// Re-evaluate eq. (6) during each swing with the velocity measured at that moment
     /// (`false`: touchdown fixed at lift-off).
     #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
@@ -65,24 +58,10 @@ pub struct WalkArgs {
     /// Floor friction coefficient (slippery ground below ~0.4); default: the robot file's.
     #[arg(long)]
     pub friction: Option<f64>,
-    /// Apply a push at this time (s): a sudden lateral change of the trunk velocity.
-    #[arg(long)]
-    pub push_at: Option<f64>,
-    /// Lateral velocity change of the push, m/s.
-    #[arg(long, default_value_t = 0.3)]
-    pub push_dv: f64,
-    /// Free gait: take a leg's diagonal partner along when its eq. (5) value is above 1 − this
-    /// (`FreePairing::pair_tolerance`, 0–1; default 0.5; 0: only when it is outside too).
-    #[arg(long)]
-    pub free_pair_tolerance: Option<f64>,
-    /// Free gait: take the partner along when a lone swing would leave the trunk less than this
-    /// inside the other feet's triangle, m (`FreePairing::support_margin_m`, −0.2–0.2; default 0).
-    #[arg(long)]
-    pub free_support_margin: Option<f64>,
-    /// Free gait: the earlier rule, a partner only when it is outside its ellipse too
-    /// (`FreePairing::UNPAIRED`; EEMP-RL's shipped policy was trained with it).
-    #[arg(long, conflicts_with_all = ["free_pair_tolerance", "free_support_margin"])]
-    pub free_unpaired: bool,
+    #[command(flatten)]
+    pub push: crate::push_arg::PushArgs,
+    #[command(flatten)]
+    pub free: crate::free_arg::FreePairingArgs,
     #[command(flatten)]
     pub mpc: crate::mpc_arg::MpcArgs,
     /// Rows per second in trace.csv (the simulation runs at 1 kHz; every step costs ≈ ¼ of the run).
@@ -119,9 +98,10 @@ impl WalkArgs {
             yaw_rate_rps: self.yaw_rate,
             profile: self.profile.clone(),
             duration_s: self.duration,
-            params: self.params.clone(),
-            params_table: self.params_table.clone(),
-            progress_factor: self.progress_factor,
+            params: self.params.params.clone(),
+            params_table: self.params.params_table.clone(),
+            table_ii: self.params.table_ii,
+            progress_factor: self.params.progress_factor,
             retarget_swing: self.retarget_swing,
             first_step_on_command: self.first_step_on_command,
             preview_swings: self.preview_swings,
@@ -129,17 +109,17 @@ impl WalkArgs {
             ellipse_friction_factor: self.mpc.ellipse_friction_factor,
             scenario: self.scenario.clone(),
             floor_friction: self.friction,
-            push_at_s: self.push_at,
-            push_dv_mps: self.push_dv,
+            push_at_s: self.push.push_at,
+            push_dv_mps: self.push.push_dv,
             mpc_friction: self.mpc.mpc_friction,
             mpc_horizon: self.mpc.mpc_horizon,
             mpc_period_s: self.mpc.mpc_period,
             adapt_friction: self.mpc.adapt_friction(),
             initial_friction: self.mpc.initial_friction,
-            free_pair_tolerance: self.free_pair_tolerance,
-            free_support_margin_m: self.free_support_margin,
+            free_pair_tolerance: self.free.free_pair_tolerance,
+            free_support_margin_m: self.free.free_support_margin,
             free_support_check: None,
-            free_unpaired: self.free_unpaired,
+            free_unpaired: self.free.free_unpaired,
         }
     }
 }

@@ -24,6 +24,7 @@ pub fn walk(d: &WalkDescription, o: &WalkOutputs) -> Result<(), String> {
     // The observer reads the spec while the walk runs; the walk takes the built run.
     let (robot, spec) = (built.robot.clone(), built.spec.clone());
     let (gait, params) = (built.gait, built.params);
+    let params_table = built.params_table_path.clone();
     let is_eemp = d.controller == "eemp";
     if !(o.trace_hz.is_finite() && o.trace_hz > 0.0 && o.trace_hz <= 1000.0) {
         return Err(format!(
@@ -198,11 +199,12 @@ pub fn walk(d: &WalkDescription, o: &WalkOutputs) -> Result<(), String> {
         "profile": d.profile.as_ref().map(|p| p.display().to_string()),
         // Constant parameters given (--params or Table II); what actually ran, per commanded
         // speed, is under params_in_force (a table's, EEMP-RL's choices).
-        "params": (is_eemp && d.params_table.is_none()).then_some(params),
+        "params": (is_eemp && params_table.is_none()).then_some(params),
         "params_in_force": params_in_force.per_speed(),
         // A learned policy acts with its Gaussian's mean (no sampling).
         "policy_action": d.policy.as_ref().map(|_| "mean"),
-        "params_table": d.params_table.as_ref().map(|p| p.display().to_string()),
+        // The table EEMP walked on: --params-table's, or the shipped one by default.
+        "params_table": params_table.as_ref().map(|p| p.display().to_string()),
         "progress_factor": spec.planner.progress_factor,
         "retarget_swing": d.retarget_swing,
         "first_step_on_command": d.first_step_on_command,

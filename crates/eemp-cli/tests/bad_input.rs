@@ -452,6 +452,61 @@ fn a_walk_traces_the_parameters_in_force_and_summarises_them_per_speed() {
 }
 
 #[test]
+fn a_walk_takes_the_shipped_table_by_default_and_table_ii_on_request() {
+    let dir = scratch("default-table");
+    let repo = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let walk = |cwd: &Path, extra: &[&str]| {
+        let out = dir.join(format!("out-{}", extra.len()));
+        let o = Command::new(env!("CARGO_BIN_EXE_eemp"))
+            .current_dir(cwd)
+            .args([
+                "walk",
+                "--gait",
+                "walk",
+                "--speed",
+                "0.2",
+                "--duration",
+                "1",
+            ])
+            .args(extra)
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert!(o.status.success(), "{stderr}");
+        let s: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap())
+                .unwrap();
+        (s, stderr)
+    };
+    // From the repository: the A1's walk table, as eemp hw, teleop and the suites use.
+    let (s, _) = walk(&repo, &[]);
+    assert_eq!(
+        s["params_table"], "tables/a1_walk.toml",
+        "{}",
+        s["params_table"]
+    );
+    assert!(s["params"].is_null());
+    let t = eemp_core::planner::params_table::ParamsTable::load(&repo.join("tables/a1_walk.toml"))
+        .unwrap();
+    let ran = &s["params_in_force"].as_array().unwrap()[1]["mean"];
+    assert_eq!(
+        ran["swing_time_s"].as_f64(),
+        Some(t.lookup(0.2).swing_time_s)
+    );
+    // --table-ii: the paper's constants.
+    let (s, _) = walk(&repo, &["--table-ii"]);
+    assert!(s["params_table"].is_null());
+    assert_eq!(s["params"]["swing_time_s"], 0.25, "{}", s["params"]);
+    // A folder without tables/: Table II, and the walk says so.
+    let (s, stderr) = walk(&dir, &["--seed", "0"]);
+    assert!(s["params_table"].is_null());
+    assert!(stderr.contains("no tables/a1_walk.toml"), "{stderr}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
 fn bad_friction_and_baseline_input_exits_2_names_the_key_and_writes_nothing() {
     // Issue 22: a friction outside (0, 2], friction segments out of order or overlapping.
     // Issue 21: an energy weight out of range, a mirror loss on a task without a mirror, a

@@ -153,11 +153,15 @@ fn bad_input_names_the_stage_shard_or_file_and_writes_nothing() {
                 "--out",
                 outs,
                 "--stage",
-                "compare",
+                "teleop",
                 "--shard",
                 "1/2",
             ],
             "none of the selected stages is shardable",
+        ),
+        (
+            vec!["reproduce", "--out", outs, "--merge-shards", "0"],
+            "--merge-shards 0 is out of range",
         ),
     ] {
         let o = eemp(&repo(), &args);

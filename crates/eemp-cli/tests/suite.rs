@@ -1,8 +1,10 @@
 //! The suite runner behind `eemp compare` and `eemp robustness`: it resumes after a kill
 //! without losing or repeating rows, a resumed run gives the same rows, and bad configs are
-//! refused before anything runs.
+//! refused before anything runs; shards cover the runs once and merge into the whole suite.
 
-use eemp_cli::suite::{load_rows, run_suite, MethodConfig, ScenarioConfig, SuiteConfig};
+use eemp_cli::suite::{
+    load_rows, merge_rows, run_suite, run_suite_shard, MethodConfig, ScenarioConfig, SuiteConfig,
+};
 use eemp_core::planner::FreePairing;
 use std::path::{Path, PathBuf};
 
@@ -29,6 +31,7 @@ fn config() -> SuiteConfig {
                 kf_velocity_jump_mps: None,
                 kf_leg_outlier_mps: None,
                 free_pairing: None,
+                mpc_horizon: None,
             },
             MethodConfig {
                 name: "model-free RL".into(),
@@ -43,6 +46,7 @@ fn config() -> SuiteConfig {
                 kf_velocity_jump_mps: None,
                 kf_leg_outlier_mps: None,
                 free_pairing: None,
+                mpc_horizon: None,
             },
         ],
         scenarios: vec![
@@ -104,6 +108,30 @@ fn a_killed_suite_resumes_without_losing_or_repeating_rows() {
     other.seeds = vec![3];
     let e = run_suite(&other, dir.path(), 1, &|_, _, _| {}).unwrap_err();
     assert!(e.contains("another config"), "{e}");
+
+    // Two shards cover the runs once; merged, they are the whole suite's rows.
+    let shards = [tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap()];
+    let mut sizes = Vec::new();
+    for (k, d) in shards.iter().enumerate() {
+        sizes.push(
+            run_suite_shard(&cfg, d.path(), 1, Some((k + 1, 2)), &|_, _, _| {})
+                .unwrap()
+                .len(),
+        );
+    }
+    assert_eq!(sizes, [4, 4]);
+    let merged = tempfile::tempdir().unwrap();
+    let dirs: Vec<PathBuf> = shards.iter().map(|d| d.path().to_path_buf()).collect();
+    assert_eq!(merge_rows(&cfg, &dirs, merged.path()).unwrap(), 8);
+    let rows = run_suite(&cfg, merged.path(), 1, &|_, n, _| panic!("run {n} again")).unwrap();
+    for r in &all {
+        let m = rows.iter().find(|x| x.run_id == r.run_id).unwrap();
+        assert_eq!((m.cot, m.vel_rmse_mps), (r.cot, r.vel_rmse_mps));
+    }
+    // A shard of another suite is refused before anything is written.
+    let e = merge_rows(&other, &dirs, &merged.path().join("new")).unwrap_err();
+    assert!(e.contains("another config"), "{e}");
+    assert!(!merged.path().join("new").exists());
 }
 
 #[test]
@@ -111,6 +139,12 @@ fn bad_suite_configs_are_refused_naming_the_value() {
     let mut c = config();
     c.methods[1].policy = Some(repo("policies/nope.safetensors"));
     assert!(c.validate().unwrap_err().contains("nope.safetensors"));
+    let mut c = config();
+    c.methods[1].mpc_horizon = Some(8);
+    assert!(c
+        .validate()
+        .unwrap_err()
+        .contains("mpc_horizon is for kind eemp"));
     let mut c = config();
     c.methods[0].kind = "magic".into();
     assert!(c.validate().unwrap_err().contains("unknown kind 'magic'"));

@@ -20,6 +20,27 @@ pub fn cost_of_transport_j_per_m(energy_j: f64, distance_m: f64) -> Option<f64> 
     (distance_m > 0.0).then(|| energy_j / distance_m)
 }
 
+/// Heat coefficient k of the electrical power estimate Σⱼ max(τⱼq̇ⱼ + k·τⱼ², 0), W/(N·m)²:
+/// Yang et al. (CoRL 2021)'s value for the A1. Unitree publishes neither the A1's torque
+/// constant nor its winding resistance, so this is an estimate from another work, not A1 data
+/// (`../shared/reference/estimation-hardware-notes.md`); it only serves the sensitivity of the
+/// CoT definition (`eemp sweep sensitivity`).
+pub const YANG_HEAT_COEFFICIENT: f64 = 0.3;
+
+/// Electrical power estimate of all joints, W: Σⱼ max(τⱼq̇ⱼ + k·τⱼ², 0), mechanical power plus
+/// the motors' Joule heat k·τ², no regeneration (Yang et al. 2021's energy term).
+pub fn electrical_power_w(
+    qd: &LegMap<Vector3<f64>>,
+    tau: &LegMap<Vector3<f64>>,
+    heat_coefficient: f64,
+) -> f64 {
+    Leg::ALL
+        .iter()
+        .flat_map(|l| (0..3).map(move |j| (qd[*l][j], tau[*l][j])))
+        .map(|(w, t)| (t * w + heat_coefficient * t * t).max(0.0))
+        .sum()
+}
+
 /// The dimensionless CoT beside eq. (8): E / (m g ΔD).
 pub fn cost_of_transport_dimensionless(
     energy_j: f64,
@@ -61,6 +82,7 @@ pub struct MetricsAccumulator {
     time_s: f64,
     joint_positive_work_j: f64,
     joint_negative_work_j: f64,
+    electrical_energy_j: f64,
 }
 
 /// Summary metrics of a run (over the measured window).
@@ -87,6 +109,9 @@ pub struct WalkMetrics {
     /// CoT of the absolute joint power, Σⱼ |q̇ⱼτⱼ|·dt / (m g ΔD) (Fu et al. 2021's energy
     /// measure), for comparison with papers that use it.
     pub cot_abs_power: Option<f64>,
+    /// CoT of the electrical estimate, ∫[`electrical_power_w`] dt / (m g ΔD) with
+    /// [`YANG_HEAT_COEFFICIENT`]: mechanical power plus Joule heat, no regeneration.
+    pub cot_electrical: Option<f64>,
 }
 
 impl MetricsAccumulator {
@@ -113,6 +138,7 @@ impl MetricsAccumulator {
         }
         self.end_xy = xy;
         self.energy_j += positive_power_w(qd, tau) * dt;
+        self.electrical_energy_j += electrical_power_w(qd, tau, YANG_HEAT_COEFFICIENT) * dt;
         for leg in Leg::ALL {
             for j in 0..3 {
                 let p = qd[leg][j] * tau[leg][j];
@@ -169,6 +195,11 @@ impl MetricsAccumulator {
             },
             cot_abs_power: cost_of_transport_dimensionless(
                 self.joint_positive_work_j + self.joint_negative_work_j,
+                mass_kg,
+                distance,
+            ),
+            cot_electrical: cost_of_transport_dimensionless(
+                self.electrical_energy_j,
                 mass_kg,
                 distance,
             ),
@@ -277,5 +308,21 @@ mod tests {
         assert!((m.joint_negative_work_j - 10.0).abs() < 1e-12);
         assert!((m.negative_work_share.unwrap() - 1.0 / 3.0).abs() < 1e-12);
         assert!((m.cot_abs_power.unwrap() - 30.0 / (10.0 * GRAVITY)).abs() < 1e-12);
+        // Electrical: FR 20 + 0.3·100 = 50 W, FL max(−10 + 0.3·100, 0) = 20 W → 70 J.
+        assert!((m.cot_electrical.unwrap() - 70.0 / (10.0 * GRAVITY)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn electrical_power_by_hand() {
+        // A braking joint whose heat is below its absorbed power counts 0 (no regeneration):
+        // τ = 2, q̇ = −5: −10 + 0.3·4 = −8.8 → 0; τ = −4, q̇ = 1: −4 + 0.3·16 = 0.8.
+        let mut qd = LegMap::splat(Vector3::zeros());
+        let mut tau = LegMap::splat(Vector3::zeros());
+        (qd[Leg::RearLeft].y, tau[Leg::RearLeft].y) = (-5.0, 2.0);
+        (qd[Leg::RearRight].z, tau[Leg::RearRight].z) = (1.0, -4.0);
+        let p = electrical_power_w(&qd, &tau, YANG_HEAT_COEFFICIENT);
+        assert!((p - 0.8).abs() < 1e-12, "{p}");
+        // Without heat it is the positive joint power, joint by joint.
+        assert_eq!(electrical_power_w(&qd, &tau, 0.0), 0.0);
     }
 }

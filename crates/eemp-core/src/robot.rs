@@ -379,6 +379,13 @@ impl RobotConfig {
         [0, 1, 2].map(|j| self.joint_range_rad(leg, j))
     }
 
+    /// Where this robot's per-speed table of `gait` is shipped, relative to the repository:
+    /// `tables/<robot>_<gait>.toml` (what the walks, suites, teleop and `eemp hw` use unless
+    /// told otherwise).
+    pub fn shipped_table_path(&self, gait: crate::planner::Gait) -> std::path::PathBuf {
+        std::path::PathBuf::from(format!("tables/{}_{gait}.toml", self.name))
+    }
+
     /// This robot's [`RobotId`].
     pub fn id(&self) -> RobotId {
         #[derive(Serialize)]

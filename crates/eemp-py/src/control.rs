@@ -94,11 +94,13 @@ fn flat(m: &LegMap<Vector3<f64>>) -> Vec<f64> {
 }
 
 /// The run description of an EEMP walk with these arguments: the one `eemp walk` fills, built
-/// (validated, the table checked against the robot) by the same code.
+/// (validated, the table checked against the robot) by the same code. Without `params` or
+/// `params_table`, the robot's shipped table of the gait when the working folder has it.
 fn eemp_walk(
     gait: &str,
     params: Option<PathBuf>,
     params_table: Option<PathBuf>,
+    table_ii: bool,
     robot: Option<PathBuf>,
 ) -> WalkDescription {
     WalkDescription {
@@ -106,6 +108,7 @@ fn eemp_walk(
         gait: gait.into(),
         params,
         params_table,
+        table_ii,
         ..Default::default()
     }
 }
@@ -127,14 +130,15 @@ pub struct PyEempController {
 #[pymethods]
 impl PyEempController {
     #[new]
-    #[pyo3(signature = (gait = "trot", params = None, params_table = None, robot = None))]
+    #[pyo3(signature = (gait = "trot", params = None, params_table = None, robot = None, table_ii = false))]
     fn new(
         gait: &str,
         params: Option<PathBuf>,
         params_table: Option<PathBuf>,
         robot: Option<PathBuf>,
+        table_ii: bool,
     ) -> PyResult<Self> {
-        let built = eemp_walk(gait, params, params_table, robot)
+        let built = eemp_walk(gait, params, params_table, table_ii, robot)
             .build()
             .map_err(value_error)?;
         let (robot, spec) = (built.robot, built.spec);
@@ -229,7 +233,7 @@ impl PyA1Sim {
     #[new]
     #[pyo3(signature = (gait = "trot", seed = 0))]
     fn new(gait: &str, seed: u64) -> PyResult<Self> {
-        let built = eemp_walk(gait, None, None, None)
+        let built = eemp_walk(gait, None, None, false, None)
             .build()
             .map_err(value_error)?;
         let robot = built.robot;
@@ -285,7 +289,7 @@ impl PyA1Sim {
 /// its summary as JSON text (the Python side makes it a dict).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (gait = "trot", speed = 0.3, duration_s = 20.0, seed = 0, lateral = 0.0, yaw_rate = 0.0, params = None, params_table = None, estimator = "ground-truth", robot = None))]
+#[pyo3(signature = (gait = "trot", speed = 0.3, duration_s = 20.0, seed = 0, lateral = 0.0, yaw_rate = 0.0, params = None, params_table = None, estimator = "ground-truth", robot = None, table_ii = false))]
 pub fn walk_json(
     py: Python<'_>,
     gait: &str,
@@ -298,6 +302,7 @@ pub fn walk_json(
     params_table: Option<PathBuf>,
     estimator: &str,
     robot: Option<PathBuf>,
+    table_ii: bool,
 ) -> PyResult<String> {
     // Python's names for the values Python users give.
     if !(duration_s.is_finite() && duration_s > 0.0 && duration_s <= 3600.0) {
@@ -315,16 +320,21 @@ pub fn walk_json(
             seed,
             ..Default::default()
         },
-        ..eemp_walk(gait, params, params_table, robot)
+        ..eemp_walk(gait, params, params_table, table_ii, robot)
     }
     .build()
     .map_err(value_error)?;
+    let params_table = built
+        .params_table_path
+        .as_ref()
+        .map(|p| p.display().to_string());
     let run = py.detach(|| built.run(|_| {})).map_err(value_error)?;
     let (m, st) = (&run.metrics, &run.stats);
     Ok(serde_json::json!({
         "gait": gait,
         "speed_mps": speed,
         "estimator": estimator,
+        "params_table": params_table,
         "duration_s": st.sim_time_s,
         "fell": st.fell,
         "fell_at_s": st.fell_at_s,

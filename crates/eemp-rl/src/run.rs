@@ -161,10 +161,14 @@ pub struct WalkDescription {
     /// A velocity profile file in place of the constant command.
     pub profile: Option<PathBuf>,
     pub duration_s: f64,
-    /// Constant planner parameters (default: Table II).
+    /// Constant planner parameters. Without them or `params_table`, EEMP walks on the robot's
+    /// shipped per-speed table of the gait (`tables/<robot>_<gait>.toml`, relative to the
+    /// working folder) as every other command does, or on Table II where there is none.
     pub params: Option<PathBuf>,
     /// A per-speed parameter table in place of `params`.
     pub params_table: Option<PathBuf>,
+    /// Walk on the paper's Table II constants rather than the shipped table.
+    pub table_ii: bool,
     /// Eq. (6)'s factor (default: the table's, else the paper's 0.5).
     pub progress_factor: Option<f64>,
     pub retarget_swing: bool,
@@ -211,6 +215,7 @@ impl Default for WalkDescription {
             duration_s: 20.0,
             params: None,
             params_table: None,
+            table_ii: false,
             progress_factor: None,
             retarget_swing: planner.retarget_swing,
             first_step_on_command: planner.first_step_on_command,
@@ -249,6 +254,8 @@ pub struct BuiltWalk {
     pub gait: Gait,
     /// The constant parameters given (`params`, or Table II).
     pub params: PlannerParams,
+    /// The per-speed table EEMP walks on (`params_table`, or the shipped one), if any.
+    pub params_table_path: Option<PathBuf>,
 }
 
 impl WalkDescription {
@@ -318,7 +325,30 @@ impl WalkDescription {
             Some(p) => load_toml(p).map_err(|e| e.to_string())?,
             None => PlannerParams::default(),
         };
-        let params_table = match &self.params_table {
+        if self.table_ii && (self.params.is_some() || self.params_table.is_some()) {
+            return Err(
+                "--table-ii asks for Table II's constants: drop --params / --params-table \
+                        (or --table-ii)"
+                    .into(),
+            );
+        }
+        let params_table_path = match (&self.params, &self.params_table) {
+            (None, None) if is_eemp && !self.table_ii => {
+                let shipped = robot.shipped_table_path(gait);
+                if shipped.exists() {
+                    Some(shipped)
+                } else {
+                    eprintln!(
+                        "note: no {} in this folder: walking on Table II's constants (run from \
+                         the repository, give --params-table FILE, or --table-ii to say so)",
+                        shipped.display()
+                    );
+                    None
+                }
+            }
+            (_, t) => t.clone(),
+        };
+        let params_table = match &params_table_path {
             Some(p) => {
                 let t = ParamsTable::load(p).map_err(|e| e.to_string())?;
                 if !self.allow_robot_mismatch {
@@ -412,6 +442,7 @@ impl WalkDescription {
             driver,
             gait,
             params,
+            params_table_path,
         })
     }
 

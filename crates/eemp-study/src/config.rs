@@ -101,12 +101,108 @@ pub struct Grid {
     /// named `<robot>_<gait>.toml`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub robot: Option<std::path::PathBuf>,
+    /// Viscous joint damping (abduction, thigh, calf), N·m·s/rad, in place of the robot file's
+    /// (`[grid] joint_damping_nms = [1, 2, 2]`, Menagerie's A1): a modelling choice of the
+    /// sensitivity study (`eemp sweep sensitivity`), a setting stored in `sweep.toml`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub joint_damping_nms: Option<[f64; 3]>,
+    /// MPC cost weights in place of the defaults (`[grid.mpc_weights] velocity = [10, 10, 5]`):
+    /// the other modelling choice of the sensitivity study, a setting like the damping.
+    #[serde(skip_serializing_if = "MpcWeights::is_default")]
+    pub mpc_weights: MpcWeights,
 }
 
 impl Grid {
-    /// The robot of the runs (validated when the sweep file was read).
+    /// The robot of the runs (validated when the sweep file was read), with the grid's joint
+    /// damping if it sets one.
     pub fn robot_config(&self) -> Result<eemp_core::robot::RobotConfig, String> {
-        eemp_core::robot::RobotConfig::load_or_a1(self.robot.as_deref()).map_err(|e| e.to_string())
+        let mut robot = eemp_core::robot::RobotConfig::load_or_a1(self.robot.as_deref())
+            .map_err(|e| e.to_string())?;
+        if let Some(d) = self.joint_damping_nms {
+            robot.leg.damping = d;
+        }
+        Ok(robot)
+    }
+}
+
+/// Eq. (2)'s cost weights that a sweep replaces (`[grid.mpc_weights]`); a weight left out keeps
+/// `MpcConfig`'s default. Each is ≥ 0 and finite.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MpcWeights {
+    /// Roll, pitch, yaw.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rpy: Option<[f64; 3]>,
+    /// Trunk position x, y, z.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub position: Option<[f64; 3]>,
+    /// Angular velocity.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub omega: Option<[f64; 3]>,
+    /// Linear velocity.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub velocity: Option<[f64; 3]>,
+    /// Ground reaction forces (one weight for every component).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub force: Option<f64>,
+}
+
+/// Largest MPC weight a sweep may set (the defaults reach 500).
+pub const MAX_MPC_WEIGHT: f64 = 1e6;
+
+impl MpcWeights {
+    pub fn is_default(&self) -> bool {
+        *self == MpcWeights::default()
+    }
+
+    /// `mpc` with these weights in place.
+    pub fn apply(&self, mpc: &mut eemp_core::convex_mpc::MpcConfig) {
+        let set3 = |dst: &mut [f64; 3], v: Option<[f64; 3]>| {
+            if let Some(v) = v {
+                *dst = v;
+            }
+        };
+        set3(&mut mpc.weight_rpy, self.rpy);
+        set3(&mut mpc.weight_position, self.position);
+        set3(&mut mpc.weight_omega, self.omega);
+        set3(&mut mpc.weight_velocity, self.velocity);
+        if let Some(f) = self.force {
+            mpc.weight_force = f;
+        }
+    }
+
+    /// Each weight as (key, values), for validation and reports.
+    fn entries(&self) -> Vec<(&'static str, Vec<f64>)> {
+        let mut out = Vec::new();
+        for (k, v) in [
+            ("rpy", self.rpy),
+            ("position", self.position),
+            ("omega", self.omega),
+            ("velocity", self.velocity),
+        ] {
+            if let Some(v) = v {
+                out.push((k, v.to_vec()));
+            }
+        }
+        if let Some(f) = self.force {
+            out.push(("force", vec![f]));
+        }
+        out
+    }
+
+    /// `velocity = [10, 10, 5]; force = 0.001`, or `default`.
+    pub fn describe(&self) -> String {
+        let e = self.entries();
+        if e.is_empty() {
+            return "default".into();
+        }
+        e.iter()
+            .map(|(k, v)| match v.as_slice() {
+                [x] => format!("{k} = {x}"),
+                _ => format!("{k} = {v:?}"),
+            })
+            .collect::<Vec<_>>()
+            .join("; ")
     }
 }
 
@@ -272,6 +368,19 @@ impl Grid {
         if self.robot != other.robot {
             out.push(format!("robot: {:?} vs {:?}", self.robot, other.robot));
         }
+        if self.joint_damping_nms != other.joint_damping_nms {
+            out.push(format!(
+                "joint_damping_nms: {:?} vs {:?}",
+                self.joint_damping_nms, other.joint_damping_nms
+            ));
+        }
+        if self.mpc_weights != other.mpc_weights {
+            out.push(format!(
+                "mpc_weights: {} vs {}",
+                self.mpc_weights.describe(),
+                other.mpc_weights.describe()
+            ));
+        }
         out
     }
 }
@@ -371,6 +480,8 @@ impl SweepConfig {
         let grid = Grid {
             estimator,
             robot: g.robot.clone(),
+            joint_damping_nms: v.joint_damping(g.joint_damping_nms)?,
+            mpc_weights: v.mpc_weights(&g.mpc_weights)?,
             progress_factor: v.progress_factor(g.progress_factor.as_ref(), &gaits)?,
             gaits,
             speed_mps: v.axis("speed_mps", &g.speed_mps, table_i::SPEED_MPS, "m/s")?,
@@ -644,6 +755,40 @@ impl Validator<'_> {
         Ok(out)
     }
 
+    /// Allowed [0, 10] N·m·s/rad per joint (Menagerie's A1 has 1–2).
+    fn joint_damping(&self, d: Option<[f64; 3]>) -> Result<Option<[f64; 3]>, StudyError> {
+        if let Some(d) = d {
+            for (i, x) in d.iter().enumerate() {
+                if !(x.is_finite() && (0.0..=10.0).contains(x)) {
+                    return Err(self.error(
+                        &format!("grid.joint_damping_nms[{i}]"),
+                        format!("{x} is out of range: allowed [0, 10] N·m·s/rad"),
+                    ));
+                }
+            }
+        }
+        Ok(d)
+    }
+
+    fn mpc_weights(&self, w: &MpcWeights) -> Result<MpcWeights, StudyError> {
+        for (key, values) in w.entries() {
+            for (i, x) in values.iter().enumerate() {
+                if !(x.is_finite() && (0.0..=MAX_MPC_WEIGHT).contains(x)) {
+                    let at = if values.len() > 1 {
+                        format!("grid.mpc_weights.{key}[{i}]")
+                    } else {
+                        format!("grid.mpc_weights.{key}")
+                    };
+                    return Err(self.error(
+                        &at,
+                        format!("{x} is out of range: allowed [0, {MAX_MPC_WEIGHT:e}]"),
+                    ));
+                }
+            }
+        }
+        Ok(*w)
+    }
+
     fn selection(&self, raw: &RawSelection) -> Result<SelectionConfig, StudyError> {
         let d = SelectionConfig::default();
         let rmse = raw.max_vel_rmse_mps.map_or(d.max_vel_rmse_mps, |n| n.0);
@@ -710,6 +855,10 @@ struct RawGrid {
     estimator: Option<String>,
     #[serde(default)]
     robot: Option<std::path::PathBuf>,
+    #[serde(default)]
+    joint_damping_nms: Option<[f64; 3]>,
+    #[serde(default)]
+    mpc_weights: MpcWeights,
 }
 
 #[derive(Deserialize, Default)]
@@ -1049,6 +1198,47 @@ seeds = [0, 1]
         big.ellipse_ry_m = vec![0.1; 1 << 20];
         assert_eq!(big.checked_run_count(), None);
         assert_eq!(big.run_count(), usize::MAX);
+    }
+
+    #[test]
+    fn the_modelling_choices_are_stored_settings_and_checked() {
+        let with = |extra: &str| parse(&format!("{GOOD}{extra}\n"));
+        let plain = with("").unwrap();
+        assert_eq!(plain.grid.joint_damping_nms, None);
+        assert!(plain.grid.mpc_weights.is_default());
+        let text = plain.to_toml();
+        assert!(
+            !text.contains("damping") && !text.contains("mpc_weights"),
+            "{text}"
+        );
+        let c = with(
+            "joint_damping_nms = [1, 2, 2]\n[grid.mpc_weights]\nvelocity = [10, 10, 5]\nforce = 0.001",
+        )
+        .unwrap();
+        assert_eq!(c.grid.joint_damping_nms, Some([1.0, 2.0, 2.0]));
+        assert_eq!(c.grid.mpc_weights.velocity, Some([10.0, 10.0, 5.0]));
+        assert_eq!(
+            c.grid.mpc_weights.describe(),
+            "velocity = [10.0, 10.0, 5.0]; force = 0.001"
+        );
+        assert_eq!(parse(&c.to_toml()).unwrap(), c, "round trip");
+        assert_eq!(c.grid.robot_config().unwrap().leg.damping, [1.0, 2.0, 2.0]);
+        assert_eq!(c.grid.differences(&plain.grid).len(), 2);
+        let msg = with("joint_damping_nms = [1, -2, 2]")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            msg.contains("grid.joint_damping_nms[1]") && msg.contains("[0, 10]"),
+            "{msg}"
+        );
+        let msg = with("[grid.mpc_weights]\nforce = nan")
+            .unwrap_err()
+            .to_string();
+        assert!(msg.contains("grid.mpc_weights.force"), "{msg}");
+        let msg = with("[grid.mpc_weights]\nspeed = [1, 1, 1]")
+            .unwrap_err()
+            .to_string();
+        assert!(msg.contains("speed"), "{msg}");
     }
 
     #[test]

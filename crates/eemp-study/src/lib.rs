@@ -9,6 +9,7 @@
 //! - [`runner`]: running the missing runs (MuJoCo via `eemp-sim`, or any closure);
 //! - [`merge`]: combining shard folders;
 //! - [`select`]: seed averages, per-speed choice, best constants, instability;
+//! - [`sensitivity`]: the paper's figures that do not reproduce, under other modelling choices;
 //! - [`report`]: table files and the Markdown/HTML report (figures come from the caller);
 //! - [`pipeline`]: `reproduce.toml`'s stages and the manifests of what made each artifact.
 
@@ -20,6 +21,7 @@ pub mod pipeline;
 pub mod report;
 pub mod runner;
 pub mod select;
+pub mod sensitivity;
 pub mod store;
 
 pub use config::{Grid, SelectionConfig, SweepConfig};

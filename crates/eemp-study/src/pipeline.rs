@@ -258,6 +258,50 @@ impl Stage {
     pub fn shardable(&self) -> bool {
         self.steps.iter().any(|s| s.shard)
     }
+
+    /// What gathers the `n` shard folders of each shardable step into the folder the full step
+    /// writes (its `--out`), so that the stage then only finishes: `eemp sweep merge` for a
+    /// sweep, the suite's own command with `--merge-from` for a suite.
+    pub fn merge_actions(&self, quick: bool, n: usize) -> Vec<Action> {
+        let full = self.actions(quick, None);
+        let shards: Vec<Vec<Action>> = (1..=n).map(|k| self.actions(quick, Some((k, n)))).collect();
+        let out_of = |args: &[String]| -> Option<String> {
+            let i = args.iter().position(|a| a == "--out")?;
+            args.get(i + 1).cloned()
+        };
+        let sharded: Vec<&Action> = self
+            .steps
+            .iter()
+            .zip(&full)
+            .filter(|(s, _)| s.shard)
+            .map(|(_, a)| a)
+            .collect();
+        let mut out = Vec::new();
+        for (i, action) in sharded.into_iter().enumerate() {
+            let Action::Eemp(args) = action else { continue };
+            let Some(to) = out_of(args) else { continue };
+            let from: Vec<String> = shards
+                .iter()
+                .filter_map(|s| match s.get(i) {
+                    Some(Action::Eemp(a)) => out_of(a),
+                    _ => None,
+                })
+                .collect();
+            let merge = if args.first().map(String::as_str) == Some("sweep") {
+                let mut v = vec!["sweep".to_string(), "merge".to_string()];
+                v.extend(from);
+                v.extend(["--out".to_string(), to]);
+                v
+            } else {
+                let mut v = args.clone();
+                v.push("--merge-from".into());
+                v.extend(from);
+                v
+            };
+            out.push(Action::Eemp(merge));
+        }
+        out
+    }
 }
 
 impl Action {
@@ -579,6 +623,50 @@ copy = ["{work}/x", "reports/a"]
             "eemp sweep --config sweeps/a.toml --out out/reproduce/sweep/shard-2-of-3 --shard 2/3"
         );
         assert!(s.shardable() && !p.stage("suite").unwrap().shardable());
+        let merge: Vec<String> = s
+            .merge_actions(false, 2)
+            .iter()
+            .map(Action::display)
+            .collect();
+        assert_eq!(
+            merge,
+            ["eemp sweep merge out/reproduce/sweep/shard-1-of-2 out/reproduce/sweep/shard-2-of-2 \
+              --out out/reproduce/sweep"]
+        );
+    }
+
+    #[test]
+    fn a_suite_merges_its_shards_with_its_own_command() {
+        let p: Pipeline = toml::from_str(
+            r#"
+sources = []
+
+[[stage]]
+name = "compare"
+about = "x"
+inputs = []
+outputs = ["reports/c"]
+[[stage.step]]
+run = ["compare", "--config", "suites/c.toml", "--out", "{work}"]
+shard = true
+[[stage.step]]
+copy = ["{work}", "reports/c"]
+"#,
+        )
+        .unwrap();
+        p.validate().unwrap();
+        let merge: Vec<String> = p.stages[0]
+            .merge_actions(false, 2)
+            .iter()
+            .map(Action::display)
+            .collect();
+        assert_eq!(
+            merge,
+            [
+                "eemp compare --config suites/c.toml --out out/reproduce/compare --merge-from \
+              out/reproduce/compare/shard-1-of-2 out/reproduce/compare/shard-2-of-2"
+            ]
+        );
     }
 
     #[test]

@@ -1,7 +1,7 @@
 //! Running a sweep: the runs of the grid (or of one shard) that `results.csv` does not hold yet,
 //! in canonical order on a rayon pool, each row appended the moment its run ends.
 
-use crate::config::{Grid, ProgressFactors, SweepConfig, SweepEstimator};
+use crate::config::{Grid, MpcWeights, ProgressFactors, SweepConfig, SweepEstimator};
 use crate::error::StudyError;
 use crate::grid::{RunSpec, Shard};
 use crate::store::{append_sessions, ResultRow, ResultStore, RunOutcome, SessionRow};
@@ -22,11 +22,12 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 /// The walking run of one grid point and seed: the A1 from rest, a constant forward command
 /// from 0.5 s on, metrics from min(2 s, duration/2) (see `WalkSpec::constant`), eq. (6)'s
 /// progress factor of the point's gait from `factors`, on the grid's `estimator` (the Kalman
-/// filter's sensor noise seeded by the run's seed).
+/// filter's sensor noise seeded by the run's seed), with the grid's MPC weights.
 pub fn walk_spec(
     spec: &RunSpec,
     factors: &ProgressFactors,
     estimator: SweepEstimator,
+    mpc_weights: &MpcWeights,
     robot: &RobotConfig,
 ) -> WalkSpec {
     let p = &spec.point;
@@ -44,20 +45,22 @@ pub fn walk_spec(
         p.duration_s,
     );
     walk.seed = spec.seed;
+    mpc_weights.apply(&mut walk.controller.mpc);
     if estimator == SweepEstimator::Kf {
         walk.state_source = StateSource::kf(robot, SensorNoise::default(), spec.seed);
     }
     walk
 }
 
-/// The runner `eemp sweep` uses: each run in MuJoCo, with the grid's progress factors and
-/// estimator.
-/// Runs on the grid's robot; a robot file that no longer loads fails every run, saying why.
+/// The runner `eemp sweep` uses: each run in MuJoCo, with the grid's progress factors,
+/// estimator and MPC weights.
+/// Runs on the grid's robot (with its joint damping); a robot file that no longer loads fails
+/// every run, saying why.
 pub fn simulator(grid: &Grid) -> impl Fn(&RunSpec) -> RunOutcome + Sync {
-    let (factors, estimator) = (grid.progress_factor, grid.estimator);
+    let (factors, estimator, weights) = (grid.progress_factor, grid.estimator, grid.mpc_weights);
     let robot = grid.robot_config();
     move |spec| match &robot {
-        Ok(robot) => simulate_on(robot, spec, &factors, estimator),
+        Ok(robot) => simulate_on(robot, spec, &factors, estimator, &weights),
         Err(e) => RunOutcome::failed(e.clone()),
     }
 }
@@ -69,7 +72,14 @@ pub fn simulate(
     estimator: SweepEstimator,
 ) -> RunOutcome {
     static A1: OnceLock<RobotConfig> = OnceLock::new();
-    simulate_on(A1.get_or_init(RobotConfig::a1), spec, factors, estimator)
+    let weights = MpcWeights::default();
+    simulate_on(
+        A1.get_or_init(RobotConfig::a1),
+        spec,
+        factors,
+        estimator,
+        &weights,
+    )
 }
 
 /// Runs one grid point on `robot`.
@@ -78,8 +88,9 @@ pub fn simulate_on(
     spec: &RunSpec,
     factors: &ProgressFactors,
     estimator: SweepEstimator,
+    mpc_weights: &MpcWeights,
 ) -> RunOutcome {
-    let walk = walk_spec(spec, factors, estimator, robot);
+    let walk = walk_spec(spec, factors, estimator, mpc_weights, robot);
     match run_walk(robot, &walk, |_| {}) {
         Ok(run) => outcome_of(&run, walk.metrics_start_s),
         Err(e) => RunOutcome::failed(e.to_string()),
@@ -93,6 +104,8 @@ fn outcome_of(run: &WalkRun, metrics_start_s: f64) -> RunOutcome {
         fell_at_s: run.stats.fell_at_s,
         cot: m.cot,
         cot_j_per_m: m.cot_j_per_m,
+        cot_abs_power: m.cot_abs_power,
+        cot_electrical: m.cot_electrical,
         manipulability: m.manipulability,
         vel_rmse_mps: m.vel_rmse_mps,
         distance_m: m.distance_m,
@@ -405,22 +418,43 @@ mod tests {
         };
         let robot = RobotConfig::a1();
         let gt = SweepEstimator::GroundTruth;
-        let walk = walk_spec(&spec(Gait::Walk), &factors, gt, &robot);
+        let w = MpcWeights::default();
+        let walk = walk_spec(&spec(Gait::Walk), &factors, gt, &w, &robot);
         assert_eq!(walk.planner.progress_factor, 1.5);
         assert_eq!(walk.planner.gait, Gait::Walk);
         assert_eq!(walk.seed, 7);
         assert_eq!(walk.state_source, StateSource::GroundTruth);
         assert_eq!(
-            walk_spec(&spec(Gait::Trot), &factors, gt, &robot)
+            walk_spec(&spec(Gait::Trot), &factors, gt, &w, &robot)
                 .planner
                 .progress_factor,
             0.5
         );
         // On the filter, the sensor noise is seeded by the run's seed.
-        let kf = walk_spec(&spec(Gait::Trot), &factors, SweepEstimator::Kf, &robot);
+        let kf = walk_spec(&spec(Gait::Trot), &factors, SweepEstimator::Kf, &w, &robot);
         match kf.state_source {
             StateSource::Kf { seed, .. } => assert_eq!(seed, 7),
             other => panic!("expected the Kalman filter, got {other:?}"),
         }
+        assert_eq!(
+            kf.controller.mpc,
+            eemp_core::convex_mpc::MpcConfig::default()
+        );
+        // The grid's MPC weights replace only the weights they name.
+        let heavy = MpcWeights {
+            velocity: Some([10.0, 10.0, 5.0]),
+            force: Some(1e-3),
+            ..Default::default()
+        };
+        let mpc = walk_spec(&spec(Gait::Trot), &factors, gt, &heavy, &robot)
+            .controller
+            .mpc;
+        let d = eemp_core::convex_mpc::MpcConfig::default();
+        assert_eq!(mpc.weight_velocity, [10.0, 10.0, 5.0]);
+        assert_eq!(mpc.weight_force, 1e-3);
+        assert_eq!(
+            (mpc.weight_rpy, mpc.weight_position),
+            (d.weight_rpy, d.weight_position)
+        );
     }
 }

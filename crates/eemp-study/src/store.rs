@@ -34,6 +34,10 @@ pub struct RunOutcome {
     /// Dimensionless CoT E/(m g ΔD) over the metrics window (`None` if ΔD ≤ 0).
     pub cot: Option<f64>,
     pub cot_j_per_m: Option<f64>,
+    /// CoT of the absolute joint power, Σⱼ|τⱼq̇ⱼ| (`WalkMetrics::cot_abs_power`).
+    pub cot_abs_power: Option<f64>,
+    /// CoT of the electrical estimate with Joule heat (`WalkMetrics::cot_electrical`).
+    pub cot_electrical: Option<f64>,
     /// Mean eq. (9) force manipulability of the stance legs.
     pub manipulability: Option<f64>,
     pub vel_rmse_mps: Option<f64>,
@@ -81,6 +85,9 @@ pub struct ResultRow {
     pub fell_at_s: Option<f64>,
     pub cot: Option<f64>,
     pub cot_j_per_m: Option<f64>,
+    /// The other CoT definitions (`eemp sweep sensitivity`): |τ·q̇| and with Joule heat.
+    pub cot_abs_power: Option<f64>,
+    pub cot_electrical: Option<f64>,
     pub manipulability: Option<f64>,
     pub vel_rmse_mps: Option<f64>,
     pub distance_m: f64,
@@ -106,7 +113,7 @@ pub struct ResultRow {
 }
 
 /// The header of `results.csv`, in order.
-pub const COLUMNS: [&str; 31] = [
+pub const COLUMNS: [&str; 33] = [
     "run_id",
     "point_id",
     "gait",
@@ -122,6 +129,8 @@ pub const COLUMNS: [&str; 31] = [
     "fell_at_s",
     "cot",
     "cot_j_per_m",
+    "cot_abs_power",
+    "cot_electrical",
     "manipulability",
     "vel_rmse_mps",
     "distance_m",
@@ -159,6 +168,8 @@ impl ResultRow {
             fell_at_s: outcome.fell_at_s,
             cot: outcome.cot,
             cot_j_per_m: outcome.cot_j_per_m,
+            cot_abs_power: outcome.cot_abs_power,
+            cot_electrical: outcome.cot_electrical,
             manipulability: outcome.manipulability,
             vel_rmse_mps: outcome.vel_rmse_mps,
             distance_m: outcome.distance_m,

@@ -32,8 +32,10 @@ def make_vec_env(task: str, num_envs: int, **kwargs) -> A1VectorEnv:
 
 def walk(gait: str = "trot", speed: float = 0.3, duration_s: float = 20.0, **kwargs) -> dict:
     """A walk under EEMP in the project's scenario and metrics (what `eemp walk` runs): fell,
-    cot, manipulability, vel_rmse_mps, distance_m, energy_j, ... as a dict. kwargs: seed,
-    lateral, yaw_rate, params (TOML), params_table (TOML), estimator ("ground-truth" or "kf")."""
+    cot, manipulability, vel_rmse_mps, distance_m, energy_j, params_table, ... as a dict. kwargs:
+    seed, lateral, yaw_rate, params (TOML), params_table (TOML; default: the robot's shipped
+    table of the gait, tables/<robot>_<gait>.toml, when the working folder has it), table_ii
+    (True: the paper's Table II constants), estimator ("ground-truth" or "kf"), robot."""
     return json.loads(_walk_json(gait=gait, speed=speed, duration_s=duration_s, **kwargs))
 
 
