@@ -112,6 +112,7 @@ pub fn run(args: &ReproduceArgs) -> Result<bool, String> {
                 println!("[{}] not shardable: skipped under --shard", stage.name);
                 continue;
             }
+            claim_work_dir(&root, stage, args.quick)?;
             run_actions(&root, stage, &stage.actions(args.quick, Some((k, n))))?;
             println!(
                 "[{}] shard {k}/{n} done; merge the shards into {} (eemp sweep merge …, or \
@@ -131,6 +132,7 @@ pub fn run(args: &ReproduceArgs) -> Result<bool, String> {
         }
         let t0 = Instant::now();
         let actions = stage.actions(args.quick, None);
+        claim_work_dir(&root, stage, args.quick)?;
         run_actions(&root, stage, &actions)?;
         let wall_s = t0.elapsed().as_secs_f64();
         write_manifest(&root, &repo, stage, &actions, args.quick, Some(wall_s))?;
@@ -144,6 +146,32 @@ pub fn run(args: &ReproduceArgs) -> Result<bool, String> {
         }
     }
     Ok(true)
+}
+
+/// A stage's scratch folder holds work that its steps resume, valid only for the inputs it was
+/// started with: it carries their digest (`.inputs`), and a folder started with other inputs
+/// (or at the other scale) is emptied first, so a changed robot file or config never resumes
+/// into results made before the change. A folder without the digest is kept as it is.
+fn claim_work_dir(root: &Path, stage: &Stage, quick: bool) -> Result<(), String> {
+    let work = root.join(stage.work_dir());
+    let stamp = work.join(".inputs");
+    let mut digest = format!("quick = {quick}\n");
+    for (p, h) in hash_all(root, &stage.inputs).map_err(|e| e.to_string())? {
+        digest.push_str(&format!("{p} {}\n", h.as_deref().unwrap_or("-")));
+    }
+    if let Ok(old) = std::fs::read_to_string(&stamp) {
+        if old != digest {
+            println!(
+                "[{}] its inputs changed since {} was started: starting it afresh",
+                stage.name,
+                stage.work_dir()
+            );
+            std::fs::remove_dir_all(&work)
+                .map_err(|e| format!("cannot empty {}: {e}", work.display()))?;
+        }
+    }
+    std::fs::create_dir_all(&work).map_err(|e| format!("cannot create {}: {e}", work.display()))?;
+    std::fs::write(&stamp, digest).map_err(|e| format!("cannot write {}: {e}", stamp.display()))
 }
 
 fn names<'a>(stages: impl Iterator<Item = &'a Stage>) -> String {

@@ -200,3 +200,49 @@ fn bad_input_names_the_stage_shard_or_file_and_writes_nothing() {
     );
     assert!(!out.exists(), "nothing written");
 }
+
+#[test]
+fn a_stage_whose_inputs_changed_starts_its_scratch_folder_afresh() {
+    let d = tempfile::tempdir().unwrap();
+    let root = d.path();
+    std::fs::create_dir_all(root.join("robots")).unwrap();
+    std::fs::copy(repo().join("robots/a1.toml"), root.join("robots/a1.toml")).unwrap();
+    std::fs::write(
+        root.join("p.toml"),
+        r#"
+sources = ["robots"]
+
+[[stage]]
+name = "model"
+about = "the A1's model"
+inputs = ["robots/a1.toml"]
+outputs = ["copied.toml"]
+[[stage.step]]
+run = ["model", "--robot", "robots/a1.toml"]
+[[stage.step]]
+copy = ["robots/a1.toml", "copied.toml"]
+"#,
+    )
+    .unwrap();
+    let run = || {
+        let o = eemp(
+            root,
+            &["reproduce", "--pipeline", "p.toml", "--out", ".", "--force"],
+        );
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stdout).into_owned()
+    };
+    run();
+    // Work left in the scratch folder (a killed step's) is resumed while the inputs hold…
+    let marker = root.join("out/reproduce/model/partial-work");
+    std::fs::write(&marker, "").unwrap();
+    assert!(!run().contains("afresh"));
+    assert!(marker.exists());
+    // …and dropped once an input changed: it was made with the old robot file.
+    let robot = root.join("robots/a1.toml");
+    let text = std::fs::read_to_string(&robot).unwrap();
+    std::fs::write(&robot, format!("{text}\n# edited\n")).unwrap();
+    let stdout = run();
+    assert!(stdout.contains("starting it afresh"), "{stdout}");
+    assert!(!marker.exists());
+}

@@ -125,7 +125,11 @@ pub struct LocomotionController {
 }
 
 impl LocomotionController {
-    pub fn new(robot: &RobotConfig, config: ControllerConfig) -> Result<Self, ConfigError> {
+    /// The robot's `[control]` defaults fill what `config` leaves open.
+    pub fn new(robot: &RobotConfig, mut config: ControllerConfig) -> Result<Self, ConfigError> {
+        if config.slip.initial_friction.is_none() {
+            config.slip.initial_friction = robot.control.slip_initial_friction;
+        }
         config.validate()?;
         let body = robot.composite_body(&robot.standing_pose());
         Ok(LocomotionController {
@@ -294,4 +298,32 @@ pub fn feet_world(kinematics: &LegKinematics, state: &RobotState) -> LegMap<Vect
         state.body.p_world
             + state.body.r_world_body * kinematics.foot_position_body(leg, &state.joints[leg].q)
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_robot_files_slip_start_fills_what_the_run_leaves_open() {
+        let mut robot = RobotConfig::a1();
+        let start = |robot: &RobotConfig, config: ControllerConfig| {
+            LocomotionController::new(robot, config)
+                .unwrap()
+                .config()
+                .slip
+                .initial_friction
+        };
+        assert_eq!(start(&robot, ControllerConfig::default()), None);
+        robot.control.slip_initial_friction = Some(0.25);
+        assert_eq!(start(&robot, ControllerConfig::default()), Some(0.25));
+        // The run's own start wins.
+        let mut own = ControllerConfig::default();
+        own.slip.initial_friction = Some(0.4);
+        assert_eq!(start(&robot, own), Some(0.4));
+        // Out of range in the robot file: named.
+        robot.control.slip_initial_friction = Some(7.0);
+        let e = robot.validate().unwrap_err().to_string();
+        assert!(e.contains("control.slip_initial_friction"), "{e}");
+    }
 }

@@ -20,6 +20,27 @@ pub struct RobotConfig {
     /// How the robot's own SDK numbers its motors (the hardware codecs read this).
     #[serde(default)]
     pub sdk: SdkConfig,
+    /// The controller's defaults that are this robot's tuning (not physics: outside the
+    /// robot's id hash, so tables and policies keep their stamp).
+    #[serde(default, skip_serializing_if = "ControlDefaults::is_empty")]
+    pub control: ControlDefaults,
+}
+
+/// `[control]` in a robot file: controller settings measured for this robot, each overridden by
+/// the run's own option.
+#[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ControlDefaults {
+    /// The coefficient the slip detector starts from (`slip.initial_friction`) when a run does
+    /// not give one: a cautious start for a robot whose first stances on a low floor throw it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub slip_initial_friction: Option<f64>,
+}
+
+impl ControlDefaults {
+    pub fn is_empty(&self) -> bool {
+        *self == ControlDefaults::default()
+    }
 }
 
 /// The robot SDK's motor numbering: motors 3k, 3k+1, 3k+2 are (abduction, thigh, calf) of
@@ -315,6 +336,10 @@ impl RobotConfig {
     pub fn validate(&self) -> Result<(), ConfigError> {
         let s = &self.simulation;
         check_range("simulation.timestep_s", s.timestep_s, 1e-5, 0.005)?;
+        if let Some(mu) = self.control.slip_initial_friction {
+            let [lo, hi] = crate::convex_mpc::FRICTION_RANGE;
+            check_range("control.slip_initial_friction", mu, lo, hi)?;
+        }
         check_range("simulation.floor_friction", s.floor_friction, 0.0, 5.0)?;
         check_positive("trunk.mass_kg", self.trunk.mass_kg)?;
         let l = &self.leg;
