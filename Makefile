@@ -25,7 +25,10 @@ stand: $(MUJOCO)
 # instead of also being checked by a separate `cargo clippy` (≈ 5 min less on a fresh 2-core
 # clone). `cargo test` builds every target here (lib, bins, tests; no examples or benches), the
 # set `cargo clippy --all-targets` lints. `make lint` is the plain `cargo clippy`.
-CLIPPY_IN_BUILD := RUSTC_WORKSPACE_WRAPPER="$$(rustc --print sysroot)/bin/clippy-driver" \
+# A one-off build (CI's): no incremental state and 16 codegen units instead of 256 (a fresh
+# 2-core clone's test build 10 min 55 s against 11 min 37 s, docs/reproduce.md).
+CLIPPY_IN_BUILD := CARGO_INCREMENTAL=0 CARGO_PROFILE_DEV_CODEGEN_UNITS=16 CARGO_PROFILE_TEST_CODEGEN_UNITS=16 \
+	RUSTC_WORKSPACE_WRAPPER="$$(rustc --print sysroot)/bin/clippy-driver" \
 	CLIPPY_ARGS="-D__CLIPPY_HACKERY__warnings__CLIPPY_HACKERY__"
 # The Go2's DDS interop test talks to a peer on Eclipse Cyclone DDS's own Python binding
 # (`cyclonedds` from PyPI, in .venv-dds, with Unitree's own IDL classes and CRC from the
