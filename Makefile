@@ -43,7 +43,8 @@ dds-peer: $(DDS_PEER)
 
 # The Python package is tested from the test build itself (`python-dev-test`), not from a wheel:
 # a wheel's `maturin build -p eemp-py` resolves other features than the workspace's test build
-# and recompiled ~100 dependencies (≈ 3.5 min on 2 cores). `make python` builds and tests the wheel.
+# and recompiled ~100 dependencies (≈ 3.5 min on 2 cores). `make python` builds the wheel,
+# `make python-test` tests it.
 TEST_FEATURES := --features eemp-cli/rerun
 PY_ENV := PYO3_PYTHON="$(CURDIR)/.venv/bin/python"
 

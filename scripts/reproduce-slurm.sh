@@ -11,11 +11,14 @@
 #   sweeps         eemp reproduce --merge-shards N --stage <the sweep stages> (merge, tables)
 #   trainings      array, one training stage per task: eemp reproduce --stage train-…
 #   suite-shards   array: eemp reproduce --shard K/N --stage <the suite stages>
-#   rest           eemp reproduce --merge-shards N: merges the suites, then runs every stage that
-#                  is not up to date in pipeline order (a fine-tune whose starting policy was
-#                  retrained in the same phase is retrained again here), and the paper's page
+#   rest           eemp reproduce --merge-shards N: runs every stage that is not up to date in
+#                  pipeline order, a shardable one from its merged shards; a fine-tune whose
+#                  starting policy was retrained beside it in the trainings phase is stale (its
+#                  manifest holds the inputs it started from) and is retrained here; then the
+#                  paper's page
 #
-# Every step resumes after a preemption or requeue. Environment: OUT (default out/study),
+# Every step resumes after a preemption or requeue; a task stopped by its time limit resumes
+# when the same phase is submitted again. Environment: OUT (default out/study),
 # SHARDS (N, default 8), EEMP (default target/release/eemp), PIPELINE (default reproduce.toml).
 #
 #SBATCH --job-name=eemp-reproduce
@@ -51,12 +54,13 @@ shard_of_task() {
 
 case "${1:-}" in
 submit)
+    # `--parsable` prints `id` or `id;cluster`: the dependency takes the id.
     a=$(sbatch --parsable --array=1-"$SHARDS" --job-name=sweep-shards "$0" sweep-shards)
-    b=$(sbatch --parsable --dependency=afterok:"$a" --job-name=sweeps "$0" sweeps)
+    b=$(sbatch --parsable --dependency=afterok:"${a%%;*}" --job-name=sweeps "$0" sweeps)
     n=$(training_stages | wc -l)
-    c=$(sbatch --parsable --dependency=afterok:"$b" --array=1-"$n" --job-name=trainings "$0" trainings)
-    d=$(sbatch --parsable --dependency=afterok:"$c" --array=1-"$SHARDS" --job-name=suite-shards "$0" suite-shards)
-    sbatch --dependency=afterok:"$d" --job-name=rest "$0" rest
+    c=$(sbatch --parsable --dependency=afterok:"${b%%;*}" --array=1-"$n" --job-name=trainings "$0" trainings)
+    d=$(sbatch --parsable --dependency=afterok:"${c%%;*}" --array=1-"$SHARDS" --job-name=suite-shards "$0" suite-shards)
+    sbatch --dependency=afterok:"${d%%;*}" --time=12:00:00 --job-name=rest "$0" rest
     ;;
 sweep-shards)
     : "${SLURM_ARRAY_TASK_ID:?run under sbatch --array=1-N}"

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
-# The walking table of issue 3: 20 s runs per gait and speed with Table II parameters
-# (`--table-ii`; give other `eemp walk` options, e.g. `--estimator kf --table-ii`, to replace it;
-# no option of that kind walks each gait's shipped table, `eemp walk`'s default).
+# The walking table of issue 3: 20 s runs per gait and speed. Without extra options: Table II's
+# parameters (`--table-ii`). Extra options replace that default: include `--table-ii` among them
+# for Table II (e.g. `--estimator kf --table-ii`); without it each gait walks on its shipped
+# table, `eemp walk`'s default.
 # Usage: scripts/walk-table.sh [eemp binary] [output folder] [extra `eemp walk` options...]
 # (prints a Markdown table)
 set -euo pipefail

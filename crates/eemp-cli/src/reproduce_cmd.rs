@@ -27,7 +27,7 @@ pub struct ReproduceArgs {
     #[arg(long)]
     pub quick: bool,
     /// Run only the K-th of N slices of the shardable stages' long steps (sweeps and suites),
-    /// into `out/reproduce/<stage>/shard-K-of-N`; merge (`eemp sweep merge`, or the suite's
+    /// into `out/reproduce/<stage>.shard-K-of-N`; merge (`eemp sweep merge`, or the suite's
     /// command with `--merge-from`), then run the stage (`scripts/reproduce-slurm.sh`).
     #[arg(long, value_name = "K/N")]
     pub shard: Option<String>,
@@ -99,12 +99,29 @@ pub fn run(args: &ReproduceArgs) -> Result<bool, String> {
             ));
         }
     }
-    prepare_root(&root, &repo, &pipeline, &stages)?;
     if let Some(n) = args.merge_shards {
+        if !stages.iter().any(|s| s.shardable()) {
+            return Err(format!(
+                "--merge-shards {n}: none of the selected stages is shardable (shardable: {})",
+                names(pipeline.stages.iter().filter(|s| s.shardable()))
+            ));
+        }
         for stage in stages.iter().filter(|s| s.shardable()) {
-            run_actions(&root, stage, &stage.merge_actions(args.quick, n))?;
+            if let Some(missing) = stage
+                .shard_outputs(args.quick, n)
+                .into_iter()
+                .find(|d| !root.join(d).is_dir())
+            {
+                return Err(format!(
+                    "--merge-shards {n}: stage '{}' has no shard folder {} (run --shard K/{n} \
+                     for every K first)",
+                    stage.name,
+                    root.join(&missing).display()
+                ));
+            }
         }
     }
+    prepare_root(&root, &repo, &pipeline, &stages)?;
     let mut timings = Vec::new();
     for stage in &stages {
         if let Some((k, n)) = shard {
@@ -112,7 +129,7 @@ pub fn run(args: &ReproduceArgs) -> Result<bool, String> {
                 println!("[{}] not shardable: skipped under --shard", stage.name);
                 continue;
             }
-            claim_work_dir(&root, stage, args.quick)?;
+            claim_work_dir(&root, stage, args.quick, Some((k, n)))?;
             run_actions(&root, stage, &stage.actions(args.quick, Some((k, n))))?;
             println!(
                 "[{}] shard {k}/{n} done; merge the shards into {} (eemp sweep merge …, or \
@@ -132,10 +149,33 @@ pub fn run(args: &ReproduceArgs) -> Result<bool, String> {
         }
         let t0 = Instant::now();
         let actions = stage.actions(args.quick, None);
-        claim_work_dir(&root, stage, args.quick)?;
+        // What the stage starts from: an input replaced while it runs (a parent policy retrained
+        // beside it) leaves it stale, not up to date.
+        let inputs = hash_all(&root, &stage.inputs).map_err(|e| e.to_string())?;
+        claim_work_dir(&root, stage, args.quick, None)?;
+        if let (Some(n), true) = (args.merge_shards, stage.shardable()) {
+            if shards_current(&root, stage, args.quick, n)? {
+                run_actions(&root, stage, &stage.merge_actions(args.quick, n))?;
+            } else {
+                println!(
+                    "[{}] its shards were made from other inputs: not merged, run here",
+                    stage.name
+                );
+            }
+        }
         run_actions(&root, stage, &actions)?;
         let wall_s = t0.elapsed().as_secs_f64();
-        write_manifest(&root, &repo, stage, &actions, args.quick, Some(wall_s))?;
+        manifest(
+            &root,
+            &repo,
+            stage,
+            &actions,
+            args.quick,
+            Some(wall_s),
+            inputs,
+        )?
+        .save(&root)
+        .map_err(|e| e.to_string())?;
         println!("[{}] done in {:.0} s", stage.name, wall_s);
         timings.push((stage.name.clone(), wall_s));
     }
@@ -148,30 +188,70 @@ pub fn run(args: &ReproduceArgs) -> Result<bool, String> {
     Ok(true)
 }
 
-/// A stage's scratch folder holds work that its steps resume, valid only for the inputs it was
-/// started with: it carries their digest (`.inputs`), and a folder started with other inputs
-/// (or at the other scale) is emptied first, so a changed robot file or config never resumes
-/// into results made before the change. A folder without the digest is kept as it is.
-fn claim_work_dir(root: &Path, stage: &Stage, quick: bool) -> Result<(), String> {
-    let work = root.join(stage.work_dir());
-    let stamp = work.join(".inputs");
+/// The digest of a stage's inputs (and scale) that its scratch folders are stamped with.
+fn inputs_digest(root: &Path, stage: &Stage, quick: bool) -> Result<String, String> {
     let mut digest = format!("quick = {quick}\n");
     for (p, h) in hash_all(root, &stage.inputs).map_err(|e| e.to_string())? {
         digest.push_str(&format!("{p} {}\n", h.as_deref().unwrap_or("-")));
     }
+    Ok(digest)
+}
+
+/// Where the digest of the scratch folder `rel` is kept: beside the folders, not inside (a step
+/// that copies `{work}` into a report must not take it along); `.digest`, so that the atomic
+/// write's temporary file differs per shard too.
+fn stamp_of(root: &Path, rel: &str) -> PathBuf {
+    let name = Path::new(rel)
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    root.join("out/reproduce/.inputs")
+        .join(format!("{name}.digest"))
+}
+
+/// A stage's scratch folder (or one shard's) holds work that its steps resume, valid only for
+/// the inputs it was started with. A folder started with other inputs (or at the other scale) is
+/// emptied first, so a changed robot file or config never resumes into results made before the
+/// change; a folder without a digest is kept as it is. Each shard claims only its own folder.
+fn claim_work_dir(
+    root: &Path,
+    stage: &Stage,
+    quick: bool,
+    shard: Option<(usize, usize)>,
+) -> Result<(), String> {
+    let rel = stage.work_dir_of(shard);
+    let work = root.join(&rel);
+    let stamp = stamp_of(root, &rel);
+    let digest = inputs_digest(root, stage, quick)?;
     if let Ok(old) = std::fs::read_to_string(&stamp) {
-        if old != digest {
+        if old != digest && work.exists() {
             println!(
-                "[{}] its inputs changed since {} was started: starting it afresh",
-                stage.name,
-                stage.work_dir()
+                "[{}] its inputs changed since {rel} was started: starting it afresh",
+                stage.name
             );
             std::fs::remove_dir_all(&work)
                 .map_err(|e| format!("cannot empty {}: {e}", work.display()))?;
         }
     }
-    std::fs::create_dir_all(&work).map_err(|e| format!("cannot create {}: {e}", work.display()))?;
-    std::fs::write(&stamp, digest).map_err(|e| format!("cannot write {}: {e}", stamp.display()))
+    let stamps = stamp
+        .parent()
+        .expect("in out/reproduce/.inputs")
+        .to_path_buf();
+    for d in [&work, &stamps] {
+        std::fs::create_dir_all(d).map_err(|e| format!("cannot create {}: {e}", d.display()))?;
+    }
+    eemp_study::store::write_atomic(&stamp, digest.as_bytes())
+        .map_err(|e| format!("cannot write {}: {e}", stamp.display()))
+}
+
+/// Whether all `n` shards of `stage` were made from its inputs as they are now (a shard of
+/// older inputs must not be merged: the stage then runs unsharded).
+fn shards_current(root: &Path, stage: &Stage, quick: bool, n: usize) -> Result<bool, String> {
+    let digest = inputs_digest(root, stage, quick)?;
+    Ok((1..=n).all(|k| {
+        let rel = stage.work_dir_of(Some((k, n)));
+        std::fs::read_to_string(stamp_of(root, &rel)).is_ok_and(|d| d == digest)
+    }))
 }
 
 fn names<'a>(stages: impl Iterator<Item = &'a Stage>) -> String {
@@ -270,7 +350,8 @@ fn record(root: &Path, repo: &Path, stages: &[&Stage]) -> Result<(), String> {
     }
     for s in stages {
         let actions = s.actions(false, None);
-        let mut m = manifest(root, repo, s, &actions, false, None)?;
+        let inputs = hash_all(root, &s.inputs).map_err(|e| e.to_string())?;
+        let mut m = manifest(root, repo, s, &actions, false, None, inputs)?;
         m.made_by = "recorded".into();
         m.code.clear();
         m.save(root).map_err(|e| e.to_string())?;
@@ -405,6 +486,7 @@ fn manifest(
     actions: &[Action],
     quick: bool,
     wall_s: Option<f64>,
+    inputs: BTreeMap<String, Option<String>>,
 ) -> Result<Manifest, String> {
     let present = |what: &str, m: BTreeMap<String, Option<String>>| {
         m.into_iter()
@@ -422,21 +504,8 @@ fn manifest(
         eemp_version: env!("CARGO_PKG_VERSION").into(),
         commands: actions.iter().map(Action::display).collect(),
         wall_s,
-        inputs: present("input", hash_all(root, &stage.inputs).map_err(e)?)?,
+        inputs: present("input", inputs)?,
         code: present("code folder", hash_all(repo, &stage.code).map_err(e)?)?,
         outputs: present("output", hash_all(root, &stage.outputs).map_err(e)?)?,
     })
-}
-
-fn write_manifest(
-    root: &Path,
-    repo: &Path,
-    stage: &Stage,
-    actions: &[Action],
-    quick: bool,
-    wall_s: Option<f64>,
-) -> Result<(), String> {
-    manifest(root, repo, stage, actions, quick, wall_s)?
-        .save(root)
-        .map_err(|e| e.to_string())
 }

@@ -272,7 +272,10 @@ fn run(args: &SuiteArgs, default: &str) -> Result<Option<(SuiteConfig, Vec<Suite
             args.out.display()
         );
     }
-    let total = cfg.runs()?.len();
+    let total = match shard {
+        Some((k, n)) => (0..cfg.runs()?.len()).filter(|i| i % n + 1 == k).count(),
+        None => cfg.runs()?.len(),
+    };
     let bar = ProgressBar::new(total as u64);
     bar.set_style(
         ProgressStyle::with_template("{bar:40} {pos}/{len} runs, {elapsed} elapsed, eta {eta}")

@@ -163,6 +163,30 @@ fn bad_input_names_the_stage_shard_or_file_and_writes_nothing() {
             vec!["reproduce", "--out", outs, "--merge-shards", "0"],
             "--merge-shards 0 is out of range",
         ),
+        (
+            vec![
+                "reproduce",
+                "--out",
+                outs,
+                "--stage",
+                "compare",
+                "--merge-shards",
+                "2",
+            ],
+            "has no shard folder",
+        ),
+        (
+            vec![
+                "reproduce",
+                "--out",
+                outs,
+                "--stage",
+                "teleop",
+                "--merge-shards",
+                "2",
+            ],
+            "none of the selected stages is shardable",
+        ),
     ] {
         let o = eemp(&repo(), &args);
         let err = String::from_utf8_lossy(&o.stderr);

@@ -231,9 +231,10 @@ impl PyA1Sim {
     /// `seed` 0 starts exactly at rest; others as the walks do (a small random heading and
     /// velocity).
     #[new]
-    #[pyo3(signature = (gait = "trot", seed = 0))]
-    fn new(gait: &str, seed: u64) -> PyResult<Self> {
-        let built = eemp_walk(gait, None, None, false, None)
+    #[pyo3(signature = (gait = "trot", seed = 0, table_ii = false))]
+    fn new(gait: &str, seed: u64, table_ii: bool) -> PyResult<Self> {
+        // The start pose of the EempController it pairs with: the same table (or Table II).
+        let built = eemp_walk(gait, None, None, table_ii, None)
             .build()
             .map_err(value_error)?;
         let robot = built.robot;

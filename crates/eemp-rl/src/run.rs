@@ -348,11 +348,21 @@ impl WalkDescription {
             }
             (_, t) => t.clone(),
         };
+        let shipped_by_default = self.params.is_none() && self.params_table.is_none();
         let params_table = match &params_table_path {
             Some(p) => {
                 let t = ParamsTable::load(p).map_err(|e| e.to_string())?;
                 if !self.allow_robot_mismatch {
-                    t.robot_id().check(&robot, &p.display().to_string())?;
+                    t.robot_id()
+                        .check(&robot, &p.display().to_string())
+                        .map_err(|e| match shipped_by_default {
+                            true => format!(
+                                "{e} (the default table of a robot named '{}'; --table-ii or \
+                                 --params-table FILE walks without it)",
+                                robot.name
+                            ),
+                            false => e,
+                        })?;
                 }
                 Some(t)
             }

@@ -221,13 +221,19 @@ impl Stage {
         format!("out/reproduce/{}", self.name)
     }
 
+    /// The scratch folder of shard `k` of `n`, or the stage's own: beside it, not inside, so
+    /// that a step copying `{work}` into a report never takes the shards along.
+    pub fn work_dir_of(&self, shard: Option<(usize, usize)>) -> String {
+        match shard {
+            Some((k, n)) => format!("{}.shard-{k}-of-{n}", self.work_dir()),
+            None => self.work_dir(),
+        }
+    }
+
     /// The actions of a full (`quick = false`) or quick run, or of shard `k` of `n` (only the
     /// steps marked `shard`).
     pub fn actions(&self, quick: bool, shard: Option<(usize, usize)>) -> Vec<Action> {
-        let work = match shard {
-            Some((k, n)) => format!("{}/shard-{k}-of-{n}", self.work_dir()),
-            None => self.work_dir(),
-        };
+        let work = self.work_dir_of(shard);
         let sub = |a: &String| a.replace("{work}", &work);
         self.steps
             .iter()
@@ -257,6 +263,20 @@ impl Stage {
 
     pub fn shardable(&self) -> bool {
         self.steps.iter().any(|s| s.shard)
+    }
+
+    /// The folders the merges of [`Stage::merge_actions`] read (each shard step's `--out`).
+    pub fn shard_outputs(&self, quick: bool, n: usize) -> Vec<String> {
+        (1..=n)
+            .flat_map(|k| self.actions(quick, Some((k, n))))
+            .filter_map(|a| match a {
+                Action::Eemp(args) => {
+                    let i = args.iter().position(|x| x == "--out")?;
+                    args.get(i + 1).cloned()
+                }
+                Action::Copy { .. } => None,
+            })
+            .collect()
     }
 
     /// What gathers the `n` shard folders of each shardable step into the folder the full step
@@ -620,7 +640,7 @@ copy = ["{work}/x", "reports/a"]
         assert_eq!(sharded.len(), 1, "the report waits for the merge");
         assert_eq!(
             sharded[0].display(),
-            "eemp sweep --config sweeps/a.toml --out out/reproduce/sweep/shard-2-of-3 --shard 2/3"
+            "eemp sweep --config sweeps/a.toml --out out/reproduce/sweep.shard-2-of-3 --shard 2/3"
         );
         assert!(s.shardable() && !p.stage("suite").unwrap().shardable());
         let merge: Vec<String> = s
@@ -630,7 +650,7 @@ copy = ["{work}/x", "reports/a"]
             .collect();
         assert_eq!(
             merge,
-            ["eemp sweep merge out/reproduce/sweep/shard-1-of-2 out/reproduce/sweep/shard-2-of-2 \
+            ["eemp sweep merge out/reproduce/sweep.shard-1-of-2 out/reproduce/sweep.shard-2-of-2 \
               --out out/reproduce/sweep"]
         );
     }
@@ -664,7 +684,7 @@ copy = ["{work}", "reports/c"]
             merge,
             [
                 "eemp compare --config suites/c.toml --out out/reproduce/compare --merge-from \
-              out/reproduce/compare/shard-1-of-2 out/reproduce/compare/shard-2-of-2"
+              out/reproduce/compare.shard-1-of-2 out/reproduce/compare.shard-2-of-2"
             ]
         );
     }

@@ -206,7 +206,7 @@ pub fn describe_variant(grid: &Grid) -> String {
         parts.push(format!("MPC weights: {}", grid.mpc_weights.describe()));
     }
     if parts.is_empty() {
-        "as shipped (no damping, default MPC weights)".into()
+        "as shipped (the robot file's damping, default MPC weights)".into()
     } else {
         parts.join("; ")
     }
