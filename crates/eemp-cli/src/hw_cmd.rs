@@ -137,7 +137,7 @@ fn controller_for(
             let table = args
                 .params_table
                 .clone()
-                .unwrap_or_else(|| crate::robot_arg::shipped_table_path(robot, gait));
+                .unwrap_or_else(|| robot.shipped_table_path(gait));
             spec.params_table = Some(ParamsTable::load(&table).map_err(|e| e.to_string())?);
             spec.allow_robot_mismatch = args.robot.allow_robot_mismatch;
             Ok(Box::new(

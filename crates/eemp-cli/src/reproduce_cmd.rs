@@ -129,7 +129,13 @@ pub fn run(args: &ReproduceArgs) -> Result<bool, String> {
                 println!("[{}] not shardable: skipped under --shard", stage.name);
                 continue;
             }
-            claim_work_dir(&root, stage, args.quick, Some((k, n)))?;
+            let inputs = hash_all(&root, &stage.inputs).map_err(|e| e.to_string())?;
+            claim_work_dir(
+                &root,
+                stage,
+                &inputs_digest(&inputs, args.quick),
+                Some((k, n)),
+            )?;
             run_actions(&root, stage, &stage.actions(args.quick, Some((k, n))))?;
             println!(
                 "[{}] shard {k}/{n} done; merge the shards into {} (eemp sweep merge …, or \
@@ -152,9 +158,10 @@ pub fn run(args: &ReproduceArgs) -> Result<bool, String> {
         // What the stage starts from: an input replaced while it runs (a parent policy retrained
         // beside it) leaves it stale, not up to date.
         let inputs = hash_all(&root, &stage.inputs).map_err(|e| e.to_string())?;
-        claim_work_dir(&root, stage, args.quick, None)?;
+        let digest = inputs_digest(&inputs, args.quick);
+        claim_work_dir(&root, stage, &digest, None)?;
         if let (Some(n), true) = (args.merge_shards, stage.shardable()) {
-            if shards_current(&root, stage, args.quick, n)? {
+            if shards_current(&root, stage, &digest, n) {
                 run_actions(&root, stage, &stage.merge_actions(args.quick, n))?;
             } else {
                 println!(
@@ -188,13 +195,14 @@ pub fn run(args: &ReproduceArgs) -> Result<bool, String> {
     Ok(true)
 }
 
-/// The digest of a stage's inputs (and scale) that its scratch folders are stamped with.
-fn inputs_digest(root: &Path, stage: &Stage, quick: bool) -> Result<String, String> {
+/// The digest of a stage's inputs (their hashes, `hash_all`) and scale that its scratch folders
+/// are stamped with.
+fn inputs_digest(inputs: &BTreeMap<String, Option<String>>, quick: bool) -> String {
     let mut digest = format!("quick = {quick}\n");
-    for (p, h) in hash_all(root, &stage.inputs).map_err(|e| e.to_string())? {
+    for (p, h) in inputs {
         digest.push_str(&format!("{p} {}\n", h.as_deref().unwrap_or("-")));
     }
-    Ok(digest)
+    digest
 }
 
 /// Where the digest of the scratch folder `rel` is kept: beside the folders, not inside (a step
@@ -216,13 +224,12 @@ fn stamp_of(root: &Path, rel: &str) -> PathBuf {
 fn claim_work_dir(
     root: &Path,
     stage: &Stage,
-    quick: bool,
+    digest: &str,
     shard: Option<(usize, usize)>,
 ) -> Result<(), String> {
     let rel = stage.work_dir_of(shard);
     let work = root.join(&rel);
     let stamp = stamp_of(root, &rel);
-    let digest = inputs_digest(root, stage, quick)?;
     if let Ok(old) = std::fs::read_to_string(&stamp) {
         if old != digest && work.exists() {
             println!(
@@ -246,12 +253,11 @@ fn claim_work_dir(
 
 /// Whether all `n` shards of `stage` were made from its inputs as they are now (a shard of
 /// older inputs must not be merged: the stage then runs unsharded).
-fn shards_current(root: &Path, stage: &Stage, quick: bool, n: usize) -> Result<bool, String> {
-    let digest = inputs_digest(root, stage, quick)?;
-    Ok((1..=n).all(|k| {
+fn shards_current(root: &Path, stage: &Stage, digest: &str, n: usize) -> bool {
+    (1..=n).all(|k| {
         let rel = stage.work_dir_of(Some((k, n)));
         std::fs::read_to_string(stamp_of(root, &rel)).is_ok_and(|d| d == digest)
-    }))
+    })
 }
 
 fn names<'a>(stages: impl Iterator<Item = &'a Stage>) -> String {

@@ -36,8 +36,3 @@ pub fn robot_json(robot: &RobotConfig, allow_mismatch: bool) -> serde_json::Valu
         "allow_robot_mismatch": allow_mismatch,
     })
 }
-
-/// Where a robot's per-speed table of `gait` is shipped ([`RobotConfig::shipped_table_path`]).
-pub fn shipped_table_path(robot: &RobotConfig, gait: eemp_core::planner::Gait) -> PathBuf {
-    robot.shipped_table_path(gait)
-}

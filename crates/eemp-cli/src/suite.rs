@@ -112,9 +112,10 @@ impl MethodConfig {
             ..Default::default()
         };
         if self.kind == "eemp" {
-            d.params_table = Some(self.table.clone().unwrap_or_else(|| {
-                crate::robot_arg::shipped_table_path(robot, gait.parse().unwrap_or(Gait::Trot))
-            }));
+            d.params_table =
+                Some(self.table.clone().unwrap_or_else(|| {
+                    robot.shipped_table_path(gait.parse().unwrap_or(Gait::Trot))
+                }));
             d.adapt_friction = self.adapt_friction;
             d.initial_friction = self.initial_friction;
             d.mpc_horizon = self.mpc_horizon;
@@ -364,7 +365,7 @@ impl SuiteConfig {
                     let t = m
                         .table
                         .clone()
-                        .unwrap_or_else(|| crate::robot_arg::shipped_table_path(&robot, g));
+                        .unwrap_or_else(|| robot.shipped_table_path(g));
                     let table = ParamsTable::load(&t)
                         .map_err(|e| format!("method '{}': {e}", m.name))?;
                     if !self.allow_robot_mismatch {
@@ -655,13 +656,13 @@ pub fn run_suite(
     run_suite_shard(cfg, dir, threads, None, on_row)
 }
 
-/// [`run_suite`] for the runs of shard `k` of `n` (1-based; run i belongs to shard i mod n + 1,
-/// as a sweep's), or all of them.
+/// [`run_suite`] for the runs of one shard (run i in shard i mod n + 1, as a sweep's), or all
+/// of them.
 pub fn run_suite_shard(
     cfg: &SuiteConfig,
     dir: &Path,
     threads: usize,
-    shard: Option<(usize, usize)>,
+    shard: Option<eemp_study::Shard>,
     on_row: &(dyn Fn(&SuiteRow, usize, usize) + Sync),
 ) -> Result<Vec<SuiteRow>, String> {
     cfg.validate()?;
@@ -675,7 +676,7 @@ pub fn run_suite_shard(
         .runs()?
         .into_iter()
         .enumerate()
-        .filter(|(i, _)| shard.is_none_or(|(k, n)| i % n + 1 == k))
+        .filter(|(i, _)| shard.is_none_or(|s| s.contains(*i)))
         .map(|(_, r)| r)
         .collect();
     let total = all.len();

@@ -242,11 +242,13 @@ fn run(args: &SuiteArgs, default: &str) -> Result<Option<(SuiteConfig, Vec<Suite
     if args.threads == Some(0) {
         return Err("--threads 0 is out of range: allowed ≥ 1".into());
     }
+    // The sweeps' shard: run i belongs to shard i mod N + 1.
     let shard = args
         .shard
         .as_deref()
         .map(eemp_study::pipeline::parse_shard)
-        .transpose()?;
+        .transpose()?
+        .map(|(index, count)| eemp_study::Shard { index, count });
     let path = args
         .config
         .clone()
@@ -272,10 +274,9 @@ fn run(args: &SuiteArgs, default: &str) -> Result<Option<(SuiteConfig, Vec<Suite
             args.out.display()
         );
     }
-    let total = match shard {
-        Some((k, n)) => (0..cfg.runs()?.len()).filter(|i| i % n + 1 == k).count(),
-        None => cfg.runs()?.len(),
-    };
+    let total = (0..cfg.runs()?.len())
+        .filter(|&i| shard.is_none_or(|s| s.contains(i)))
+        .count();
     let bar = ProgressBar::new(total as u64);
     bar.set_style(
         ProgressStyle::with_template("{bar:40} {pos}/{len} runs, {elapsed} elapsed, eta {eta}")
@@ -292,9 +293,9 @@ fn run(args: &SuiteArgs, default: &str) -> Result<Option<(SuiteConfig, Vec<Suite
         args.out.display(),
         t0.elapsed().as_secs_f64()
     );
-    if let Some((k, n)) = shard {
+    if let Some(s) = shard {
         println!(
-            "shard {k}/{n} done in {}; when every shard is: the same command without --shard, \
+            "shard {s} done in {}; when every shard is: the same command without --shard, \
              with --merge-from <the shard folders> --out <the report folder>",
             args.out.display()
         );

@@ -152,7 +152,7 @@ pub fn run(args: &TeleopArgs) -> Result<(), String> {
         VelocityCommand::default(),
         duration,
     );
-    let table = crate::robot_arg::shipped_table_path(&robot, gait);
+    let table = robot.shipped_table_path(gait);
     spec.params_table = Some(
         eemp_core::planner::params_table::ParamsTable::load(&table)
             .map_err(|e| format!("{e} (the per-speed {gait} table of robot '{}')", robot.name))?,

@@ -114,9 +114,18 @@ fn a_killed_suite_resumes_without_losing_or_repeating_rows() {
     let mut sizes = Vec::new();
     for (k, d) in shards.iter().enumerate() {
         sizes.push(
-            run_suite_shard(&cfg, d.path(), 1, Some((k + 1, 2)), &|_, _, _| {})
-                .unwrap()
-                .len(),
+            run_suite_shard(
+                &cfg,
+                d.path(),
+                1,
+                Some(eemp_study::Shard {
+                    index: k + 1,
+                    count: 2,
+                }),
+                &|_, _, _| {},
+            )
+            .unwrap()
+            .len(),
         );
     }
     assert_eq!(sizes, [4, 4]);

@@ -37,8 +37,13 @@ pub fn electrical_power_w(
     Leg::ALL
         .iter()
         .flat_map(|l| (0..3).map(move |j| (qd[*l][j], tau[*l][j])))
-        .map(|(w, t)| (t * w + heat_coefficient * t * t).max(0.0))
+        .map(|(w, t)| joint_electrical_power_w(w, t, heat_coefficient))
         .sum()
+}
+
+/// One joint's term of [`electrical_power_w`]: max(τq̇ + k·τ², 0), W.
+fn joint_electrical_power_w(qd: f64, tau: f64, heat_coefficient: f64) -> f64 {
+    (tau * qd + heat_coefficient * tau * tau).max(0.0)
 }
 
 /// The dimensionless CoT beside eq. (8): E / (m g ΔD).
@@ -138,7 +143,9 @@ impl MetricsAccumulator {
         }
         self.end_xy = xy;
         self.energy_j += positive_power_w(qd, tau) * dt;
-        self.electrical_energy_j += electrical_power_w(qd, tau, YANG_HEAT_COEFFICIENT) * dt;
+        // One pass over the joints for the per-joint measures; the electrical terms are summed
+        // in `electrical_power_w`'s order, so the sum is its value bit for bit.
+        let mut electrical_w = 0.0;
         for leg in Leg::ALL {
             for j in 0..3 {
                 let p = qd[leg][j] * tau[leg][j];
@@ -146,8 +153,11 @@ impl MetricsAccumulator {
                     true => self.joint_positive_work_j += p * dt,
                     false => self.joint_negative_work_j -= p * dt,
                 }
+                electrical_w +=
+                    joint_electrical_power_w(qd[leg][j], tau[leg][j], YANG_HEAT_COEFFICIENT);
             }
         }
+        self.electrical_energy_j += electrical_w * dt;
         self.sq_vel_err +=
             (v_heading.x - v_command_xy[0]).powi(2) + (v_heading.y - v_command_xy[1]).powi(2);
         self.vel_samples += 1;

@@ -269,13 +269,7 @@ impl Stage {
     pub fn shard_outputs(&self, quick: bool, n: usize) -> Vec<String> {
         (1..=n)
             .flat_map(|k| self.actions(quick, Some((k, n))))
-            .filter_map(|a| match a {
-                Action::Eemp(args) => {
-                    let i = args.iter().position(|x| x == "--out")?;
-                    args.get(i + 1).cloned()
-                }
-                Action::Copy { .. } => None,
-            })
+            .filter_map(|a| a.out_dir())
             .collect()
     }
 
@@ -285,10 +279,6 @@ impl Stage {
     pub fn merge_actions(&self, quick: bool, n: usize) -> Vec<Action> {
         let full = self.actions(quick, None);
         let shards: Vec<Vec<Action>> = (1..=n).map(|k| self.actions(quick, Some((k, n)))).collect();
-        let out_of = |args: &[String]| -> Option<String> {
-            let i = args.iter().position(|a| a == "--out")?;
-            args.get(i + 1).cloned()
-        };
         let sharded: Vec<&Action> = self
             .steps
             .iter()
@@ -298,15 +288,10 @@ impl Stage {
             .collect();
         let mut out = Vec::new();
         for (i, action) in sharded.into_iter().enumerate() {
-            let Action::Eemp(args) = action else { continue };
-            let Some(to) = out_of(args) else { continue };
-            let from: Vec<String> = shards
-                .iter()
-                .filter_map(|s| match s.get(i) {
-                    Some(Action::Eemp(a)) => out_of(a),
-                    _ => None,
-                })
-                .collect();
+            let (Action::Eemp(args), Some(to)) = (action, action.out_dir()) else {
+                continue;
+            };
+            let from: Vec<String> = shards.iter().filter_map(|s| s.get(i)?.out_dir()).collect();
             let merge = if args.first().map(String::as_str) == Some("sweep") {
                 let mut v = vec!["sweep".to_string(), "merge".to_string()];
                 v.extend(from);
@@ -325,6 +310,17 @@ impl Stage {
 }
 
 impl Action {
+    /// The folder an `eemp` step writes (its `--out`).
+    pub fn out_dir(&self) -> Option<String> {
+        match self {
+            Action::Eemp(args) => {
+                let i = args.iter().position(|a| a == "--out")?;
+                args.get(i + 1).cloned()
+            }
+            Action::Copy { .. } => None,
+        }
+    }
+
     /// As a user would type it.
     pub fn display(&self) -> String {
         match self {
