@@ -2,7 +2,7 @@
 #   make demo   -- the main job: a simulated A1 walking under EEMP, metrics and figures in out/demo
 #   make test   -- every test (what .ci/run runs)
 # Both install MuJoCo 3.17.0 into .mujoco/ first (from the PyPI wheel; nothing else is needed).
-.PHONY: mujoco demo stand test lint bench python python-test python-dev-test viewer dds-peer
+.PHONY: mujoco demo stand test lint bench python python-test python-dev-test viewer viewer-test dds-peer
 
 MUJOCO := .mujoco/lib/libmujoco.so
 # The Python tools (maturin, numpy, gymnasium, pytest) in .venv.
@@ -13,13 +13,21 @@ $(MUJOCO):
 
 mujoco: $(MUJOCO)
 
+# The demo's build leaves out what a walk under EEMP does not use (`--no-default-features`: no
+# training or policies, so no candle; no robot link, so no DDS): half the compile time of the
+# whole command on a fresh 2-core clone (docs/reproduce.md). `cargo build --release -p eemp-cli`
+# builds everything.
+DEMO_BUILD := --release -p eemp-cli --no-default-features
+
 demo: $(MUJOCO)
-	cargo run --release -p eemp-cli -- walk --gait trot --speed 0.3 --duration 20 --out out/demo --video out/demo/walk.gif
+	cargo run $(DEMO_BUILD) -- walk --gait trot --speed 0.3 --duration 20 --out out/demo --video out/demo/walk.gif
 
 stand: $(MUJOCO)
-	cargo run --release -p eemp-cli -- stand --duration 20 --out out/stand
+	cargo run $(DEMO_BUILD) -- stand --duration 20 --out out/stand
 
-# Tests build the optional Rerun recorder too (eemp-viz, `--features eemp-cli/rerun`).
+# `make test` leaves out the optional Rerun recorder (the eemp-viz crate and `eemp-cli/rerun`):
+# Rerun's ≈ 300 crates were 35 % of a fresh 2-core clone's test build (≈ 3.8 min), more than the
+# 12 min budget leaves; `make viewer-test` builds and tests it (docs/viewer.md).
 # Clippy lints inside the test build: clippy-driver compiles the workspace's own crates, as
 # `cargo clippy` has it do (the same two variables), so the dependencies are compiled once
 # instead of also being checked by a separate `cargo clippy` (≈ 5 min less on a fresh 2-core
@@ -45,12 +53,12 @@ dds-peer: $(DDS_PEER)
 # a wheel's `maturin build -p eemp-py` resolves other features than the workspace's test build
 # and recompiled ~100 dependencies (≈ 3.5 min on 2 cores). `make python` builds the wheel,
 # `make python-test` tests it.
-TEST_FEATURES := --features eemp-cli/rerun
+TEST_SCOPE := --workspace --exclude eemp-viz
 PY_ENV := PYO3_PYTHON="$(CURDIR)/.venv/bin/python"
 
 test: $(MUJOCO) $(DDS_PEER) $(VENV)
 	cargo fmt --all -- --check
-	EEMP_REQUIRE_DDS_PEER=1 $(CLIPPY_IN_BUILD) $(PY_ENV) cargo test --workspace $(TEST_FEATURES)
+	EEMP_REQUIRE_DDS_PEER=1 $(CLIPPY_IN_BUILD) $(PY_ENV) cargo test $(TEST_SCOPE)
 	$(MAKE) python-dev-test
 
 lint:
@@ -80,7 +88,7 @@ python-test: python
 # sources in target/python-dev (libmujoco found through the module's rpath), then pytest.
 PYDEV := target/python-dev
 python-dev-test: $(MUJOCO) $(VENV)
-	$(CLIPPY_IN_BUILD) $(PY_ENV) cargo build --workspace --lib --bins --tests $(TEST_FEATURES)
+	$(CLIPPY_IN_BUILD) $(PY_ENV) cargo build $(TEST_SCOPE) --lib --bins --tests
 	rm -rf $(PYDEV) && mkdir -p $(PYDEV)/eemp
 	ln -s $(CURDIR)/crates/eemp-py/python/eemp/*.py $(PYDEV)/eemp/
 	cp target/debug/lib_eemp.so $(PYDEV)/eemp/_eemp.so
@@ -91,6 +99,12 @@ python-dev-test: $(MUJOCO) $(VENV)
 # pip install rerun-sdk==0.36.3 (the same minor version as the recorder).
 viewer: $(MUJOCO)
 	cargo build --release -p eemp-cli --features rerun
+
+# The recorder's tests (a walk's recording read back with Rerun's own query engine, the CLI's
+# --rerun options, a viewer that never answers), with clippy, as `make test` runs the rest.
+viewer-test: $(MUJOCO)
+	$(CLIPPY_IN_BUILD) cargo test -p eemp-viz
+	$(CLIPPY_IN_BUILD) cargo test -p eemp-cli --features rerun --lib --bins --test rerun
 
 bench: $(MUJOCO)
 	cargo run --release -p eemp-cli -- bench mpc

@@ -3,10 +3,13 @@
 #![recursion_limit = "256"]
 pub mod bench;
 pub mod bench_estimator;
+#[cfg(feature = "learning")]
 pub mod bench_rl;
 pub mod bench_viewer;
 pub mod free_arg;
+#[cfg(feature = "hardware")]
 pub mod hw_cmd;
+#[cfg(feature = "hardware")]
 pub mod link_arg;
 pub mod mpc_arg;
 pub mod output;
@@ -27,6 +30,7 @@ pub mod suite_cmd;
 pub mod sweep_cmd;
 pub mod sweep_report;
 pub mod teleop_cmd;
+#[cfg(feature = "learning")]
 pub mod train_cmd;
 pub mod video;
 pub mod walk_cmd;

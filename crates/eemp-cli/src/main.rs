@@ -1,9 +1,12 @@
 //! `eemp`: the energy-efficient motion planner on a simulated Unitree A1.
 
 use clap::{Parser, Subcommand};
+#[cfg(feature = "hardware")]
+use eemp_cli::hw_cmd;
+#[cfg(feature = "learning")]
+use eemp_cli::train_cmd;
 use eemp_cli::{
-    hw_cmd, replay_cmd, reproduce_cmd, retarget_cmd, stand_cmd, suite_cmd, sweep_cmd, teleop_cmd,
-    train_cmd, walk_cmd,
+    replay_cmd, reproduce_cmd, retarget_cmd, stand_cmd, suite_cmd, sweep_cmd, teleop_cmd, walk_cmd,
 };
 
 #[derive(Parser)]
@@ -26,12 +29,15 @@ enum Command {
     /// Parameter study (EEMP-Analytical): run a grid of walks (resumable, shardable), merge
     /// shards, report the best parameters per speed.
     Sweep(sweep_cmd::SweepArgs),
+    #[cfg(feature = "learning")]
     /// Train a learned controller with PPO (resumable); policy, log and curves in --out.
     Train(train_cmd::TrainArgs),
     /// Retarget a raw dog motion-capture clip to an A1 reference motion (imitation baseline).
     Retarget(retarget_cmd::RetargetArgs),
+    #[cfg(feature = "hardware")]
     /// Run a controller on an A1 over its low-level UDP protocol, behind the safety layer.
     Hw(Box<hw_cmd::HwArgs>),
+    #[cfg(feature = "hardware")]
     /// A MuJoCo A1 that speaks the A1's low-level protocol on UDP (for `eemp hw`).
     SimRobot(hw_cmd::SimRobotArgs),
     /// Drive EEMP in the simulation from a gamepad, the keyboard or a command script.
@@ -91,6 +97,7 @@ enum BenchCommand {
         #[arg(long, default_value_t = 20000)]
         updates: usize,
     },
+    #[cfg(feature = "learning")]
     /// Time the learned-controller pipeline: env stepping (1 thread, all), training, bare MuJoCo.
     Rl {
         /// Environments (as many as the shipped training config).
@@ -117,9 +124,12 @@ fn main() {
         Command::Stand(args) => stand_cmd::run(&args),
         Command::Walk(args) => walk_cmd::run(&args),
         Command::Sweep(args) => sweep_cmd::run(&args),
+        #[cfg(feature = "learning")]
         Command::Train(args) => train_cmd::run(&args),
         Command::Retarget(args) => retarget_cmd::run(&args),
+        #[cfg(feature = "hardware")]
         Command::Hw(args) => hw_cmd::run_hw_cmd(&args),
+        #[cfg(feature = "hardware")]
         Command::SimRobot(args) => hw_cmd::run_sim_robot_cmd(&args),
         Command::Teleop(args) => teleop_cmd::run(&args),
         Command::Replay(args) => replay_cmd::run(&args),
@@ -149,6 +159,7 @@ fn main() {
             println!("{}", report.json_line());
             Ok(())
         })(),
+        #[cfg(feature = "learning")]
         Command::Bench {
             robot,
             what:

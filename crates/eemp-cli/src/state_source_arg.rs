@@ -4,7 +4,7 @@
 use eemp_core::robot::RobotConfig;
 use eemp_sim::closed_loop::StateSource;
 // The run description owns what a controller sees; these are its command-line options.
-pub use eemp_rl::run::{adopt_policy_filter, state_source, with_kf_options, KfOptions, Sensing};
+pub use eemp_rl::run::{state_source, with_kf_options, KfOptions, Sensing};
 
 /// The options, flattened into `eemp walk` and `eemp stand`.
 #[derive(clap::Args, Debug)]

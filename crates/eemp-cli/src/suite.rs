@@ -11,7 +11,6 @@ use crate::state_source_arg::KfOptions;
 use eemp_core::planner::params_table::ParamsTable;
 use eemp_core::planner::{FreePairing, Gait, PlannerConfig};
 use eemp_core::robot::RobotConfig;
-use eemp_rl::policy::Policy;
 use eemp_rl::run::{Sensing, WalkDescription};
 use eemp_sim::closed_loop::StateSource;
 use eemp_sim::scenario::Scenario;
@@ -242,7 +241,6 @@ pub struct SuiteRow {
     pub manipulability: Option<f64>,
     pub distance_m: f64,
     pub steps_total: u64,
-    pub wall_s: f64,
     /// Why the run could not be done (a bad file, a simulator error); not a result.
     pub error: Option<String>,
     /// Mean planner parameters in force over the metrics window (EEMP methods; empty for the
@@ -298,8 +296,11 @@ impl SuiteRow {
 }
 
 pub const RESULTS: &str = "results.csv";
+/// Each run's wall time (`run_id,wall_s`, appended as runs finish): kept out of `results.csv`,
+/// whose bytes are the same for the same runs.
+pub const TIMING: &str = "timing.csv";
 /// The columns of `results.csv` (the fields of [`SuiteRow`]).
-const HEADER: &str = "run_id,method,scenario,speed_mps,seed,fell,fell_at_s,vel_rmse_mps,cot,manipulability,distance_m,steps_total,wall_s,error,swing_time_s,step_height_m,body_height_m,ellipse_rx_m,ellipse_ry_m,negative_work_share,cot_abs_power,diagonal_pairs_together,lateral_pairs_together,left_right_imbalance,duty_factor_min";
+const HEADER: &str = "run_id,method,scenario,speed_mps,seed,fell,fell_at_s,vel_rmse_mps,cot,manipulability,distance_m,steps_total,error,swing_time_s,step_height_m,body_height_m,ellipse_rx_m,ellipse_ry_m,negative_work_share,cot_abs_power,diagonal_pairs_together,lateral_pairs_together,left_right_imbalance,duty_factor_min";
 pub const CONFIG: &str = "suite.toml";
 
 impl SuiteConfig {
@@ -420,11 +421,7 @@ impl SuiteConfig {
                     let p = m.policy.as_ref().ok_or_else(|| {
                         format!("method '{}': kind {k} needs policy = FILE", m.name)
                     })?;
-                    let mut policy = Policy::load(p, Some(k.parse()?))
-                        .map_err(|e| format!("method '{}': {e}", m.name))?;
-                    policy.allow_robot_mismatch = self.allow_robot_mismatch;
-                    policy
-                        .check_robot(&robot)
+                    eemp_rl::run::check_policy(k, p, &robot, self.allow_robot_mismatch)
                         .map_err(|e| format!("method '{}': {e}", m.name))?;
                 }
                 other => {
@@ -517,7 +514,6 @@ pub fn simulate(
     let m = &cfg.methods[run.method];
     let sc = &cfg.scenarios[run.scenario];
     let built = m.walk(cfg, sc, run.speed_mps, run.seed, robot).build()?;
-    let t0 = std::time::Instant::now();
     // The parameters in force over the metrics window (EEMP's constant or table, EEMP-RL's).
     let mut params = eemp_core::planner::params_stats::ParamsStats::default();
     let metrics_start_s = built.spec.metrics_start_s;
@@ -542,7 +538,6 @@ pub fn simulate(
         manipulability: walk.metrics.manipulability,
         distance_m: walk.metrics.distance_m,
         steps_total: walk.steps.0.iter().sum::<usize>() as u64,
-        wall_s: t0.elapsed().as_secs_f64(),
         error: None,
         ..Default::default()
     };
@@ -601,6 +596,22 @@ fn claim_folder(cfg: &SuiteConfig, dir: &Path) -> Result<(), String> {
     Ok(())
 }
 
+/// `rows` in the order of `cfg.runs()` (as written out once a suite or a merge is complete, so
+/// that the same runs give the same bytes however the threads finished them).
+fn in_run_order(cfg: &SuiteConfig, mut rows: Vec<SuiteRow>) -> Result<Vec<SuiteRow>, String> {
+    let order: std::collections::HashMap<String, usize> = cfg
+        .runs()?
+        .iter()
+        .enumerate()
+        .map(|(i, r)| (cfg.run_id(r), i))
+        .collect();
+    rows.sort_by(|a, b| {
+        let key = |r: &SuiteRow| order.get(&r.run_id).copied().unwrap_or(usize::MAX);
+        key(a).cmp(&key(b)).then_with(|| a.run_id.cmp(&b.run_id))
+    });
+    Ok(rows)
+}
+
 /// Writes `rows` as `path` (header first), atomically.
 fn write_rows(path: &Path, rows: &[SuiteRow]) -> Result<(), String> {
     let mut w = csv::Writer::from_writer(Vec::new());
@@ -642,8 +653,9 @@ pub fn merge_rows(cfg: &SuiteConfig, shards: &[PathBuf], dir: &Path) -> Result<u
             rows.push(r);
         }
     }
-    write_rows(&path, &rows)?;
-    Ok(rows.len() - before)
+    let added = rows.len() - before;
+    write_rows(&path, &in_run_order(cfg, rows)?)?;
+    Ok(added)
 }
 
 /// Runs every run of `cfg` that `dir/results.csv` does not hold yet; returns all rows.
@@ -690,6 +702,19 @@ pub fn run_suite_shard(
             .open(&path)
             .map_err(|e| format!("cannot append to {}: {e}", path.display()))?,
     );
+    let timing_path = dir.join(TIMING);
+    let new_timing = !timing_path.exists();
+    let mut timing_file = std::fs::OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(&timing_path)
+        .map_err(|e| format!("cannot append to {}: {e}", timing_path.display()))?;
+    if new_timing {
+        timing_file
+            .write_all(b"run_id,wall_s\n")
+            .map_err(|e| e.to_string())?;
+    }
+    let timing = Mutex::new(timing_file);
     let finished = Mutex::new(rows.len());
     let robot = cfg.robot_config()?;
     let pool = rayon::ThreadPoolBuilder::new()
@@ -699,6 +724,7 @@ pub fn run_suite_shard(
     let new_rows: Vec<Result<SuiteRow, String>> = pool.install(|| {
         todo.par_iter()
             .map(|run| {
+                let t0 = std::time::Instant::now();
                 let row = simulate(cfg, run, &robot).unwrap_or_else(|e| SuiteRow {
                     run_id: cfg.run_id(run),
                     method: cfg.methods[run.method].name.clone(),
@@ -712,7 +738,6 @@ pub fn run_suite_shard(
                     manipulability: None,
                     distance_m: 0.0,
                     steps_total: 0,
-                    wall_s: 0.0,
                     error: Some(e),
                     ..Default::default()
                 });
@@ -726,6 +751,16 @@ pub fn run_suite_shard(
                     let mut f = file.lock().expect("not poisoned");
                     f.write_all(&line).map_err(|e| e.to_string())?;
                     f.flush().map_err(|e| e.to_string())?;
+                }
+                if row.error.is_none() {
+                    let mut w = csv::WriterBuilder::new()
+                        .has_headers(false)
+                        .from_writer(Vec::new());
+                    w.serialize((&row.run_id, t0.elapsed().as_secs_f64()))
+                        .map_err(|e| e.to_string())?;
+                    let line = w.into_inner().map_err(|e| e.to_string())?;
+                    let mut f = timing.lock().expect("not poisoned");
+                    f.write_all(&line).map_err(|e| e.to_string())?;
                 }
                 let mut n = finished.lock().expect("not poisoned");
                 *n += 1;
@@ -741,5 +776,8 @@ pub fn run_suite_shard(
         }
         rows.push(r);
     }
+    // Complete: the file again, in the runs' order.
+    let rows = in_run_order(cfg, rows)?;
+    write_rows(&path, &rows)?;
     Ok(rows)
 }

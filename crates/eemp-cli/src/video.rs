@@ -76,42 +76,56 @@ pub fn write_gif(
         .map_err(|e| format!("{}: {e}", path.display()))?;
     enc.set_repeat(gif::Repeat::Infinite)
         .map_err(|e| e.to_string())?;
-    let mut rgb = vec![0u8; WIDTH * HEIGHT * 3];
     let poster = frames.len() / 2;
-    for (k, f) in frames.iter().enumerate() {
-        let state = RobotState {
-            time_s: f.t_s,
-            body: BodyState {
-                p_world: f.p_world,
-                r_world_body: UnitQuaternion::from_euler_angles(f.rpy.x, f.rpy.y, f.rpy.z),
-                v_world: Vector3::zeros(),
-                omega_world: Vector3::zeros(),
-            },
-            joints: LegMap::from_fn(|l: Leg| LegJointState {
-                q: f.q[l],
-                qd: Vector3::zeros(),
-            }),
-        };
-        sim.set_state(&state);
-        renderer
-            .sync_data(sim.data_mut())
-            .map_err(|e| e.to_string())?;
-        renderer.render().map_err(|e| e.to_string())?;
-        if k == poster {
-            // A still beside the video (for pages that show no animation).
+    // The renderer (its GL context) stays on this thread; the overlay, the palette and the
+    // encoding of each frame run on a second one, overlapping the next frame's rendering.
+    let (tx, rx) = std::sync::mpsc::sync_channel::<(Vec<u8>, &VideoFrame)>(4);
+    std::thread::scope(|scope| {
+        let encoder = scope.spawn(move || -> Result<(), String> {
+            for (mut rgb, f) in rx {
+                overlay(&mut rgb, label, f).map_err(|e| e.to_string())?;
+                let mut frame = gif::Frame::from_rgb_speed(WIDTH as u16, HEIGHT as u16, &rgb, 20);
+                frame.delay = (100.0 / FPS).round() as u16;
+                enc.write_frame(&frame).map_err(|e| e.to_string())?;
+            }
+            Ok(())
+        });
+        for (k, f) in frames.iter().enumerate() {
+            let state = RobotState {
+                time_s: f.t_s,
+                body: BodyState {
+                    p_world: f.p_world,
+                    r_world_body: UnitQuaternion::from_euler_angles(f.rpy.x, f.rpy.y, f.rpy.z),
+                    v_world: Vector3::zeros(),
+                    omega_world: Vector3::zeros(),
+                },
+                joints: LegMap::from_fn(|l: Leg| LegJointState {
+                    q: f.q[l],
+                    qd: Vector3::zeros(),
+                }),
+            };
+            sim.set_state(&state);
             renderer
-                .save_rgb(path.with_extension("png"))
+                .sync_data(sim.data_mut())
                 .map_err(|e| e.to_string())?;
+            renderer.render().map_err(|e| e.to_string())?;
+            if k == poster {
+                // A still beside the video (for pages that show no animation).
+                renderer
+                    .save_rgb(path.with_extension("png"))
+                    .map_err(|e| e.to_string())?;
+            }
+            // (mujoco-rs returns the rows top-down already.)
+            let img = renderer.rgb_flat().ok_or("RGB rendering is off")?;
+            if tx.send((img.to_vec(), f)).is_err() {
+                break; // the encoder stopped: its error is reported below
+            }
         }
-        let img = renderer.rgb_flat().ok_or("RGB rendering is off")?;
-        // (mujoco-rs returns the rows top-down already.)
-        rgb.copy_from_slice(img);
-        overlay(&mut rgb, label, f).map_err(|e| e.to_string())?;
-        let mut frame = gif::Frame::from_rgb_speed(WIDTH as u16, HEIGHT as u16, &rgb, 20);
-        frame.delay = (100.0 / FPS).round() as u16;
-        enc.write_frame(&frame).map_err(|e| e.to_string())?;
-    }
-    Ok(())
+        drop(tx);
+        encoder
+            .join()
+            .map_err(|_| "the GIF encoder panicked".to_string())?
+    })
 }
 
 fn overlay(rgb: &mut [u8], label: &str, f: &VideoFrame) -> Result<(), Box<dyn std::error::Error>> {

@@ -1,6 +1,7 @@
 //! The suite runner behind `eemp compare` and `eemp robustness`: it resumes after a kill
 //! without losing or repeating rows, a resumed run gives the same rows, and bad configs are
-//! refused before anything runs; shards cover the runs once and merge into the whole suite.
+//! refused before anything runs; shards cover the runs once and merge into the whole suite; the
+//! same runs give the same `results.csv` bytes however they were run.
 
 use eemp_cli::suite::{
     load_rows, merge_rows, run_suite, run_suite_shard, MethodConfig, ScenarioConfig, SuiteConfig,
@@ -80,6 +81,7 @@ fn a_killed_suite_resumes_without_losing_or_repeating_rows() {
     );
     // A kill mid-write: two full rows and a partial third stay.
     let path = dir.path().join("results.csv");
+    let first_bytes = std::fs::read(&path).unwrap();
     let text = std::fs::read_to_string(&path).unwrap();
     let lines: Vec<&str> = text.lines().collect();
     let cut = format!(
@@ -95,6 +97,10 @@ fn a_killed_suite_resumes_without_losing_or_repeating_rows() {
     assert_eq!(again.len(), 8);
     let on_disk = load_rows(&path).unwrap();
     assert_eq!(on_disk.len(), 8, "no row lost, none repeated");
+    assert!(
+        std::fs::read(&path).unwrap() == first_bytes,
+        "the same runs give the same results.csv, byte for byte (2 threads whole, 1 resumed)"
+    );
     // The same seed gives the same run, whatever the thread count.
     for r in &all {
         let s = on_disk.iter().find(|x| x.run_id == r.run_id).unwrap();
@@ -132,6 +138,10 @@ fn a_killed_suite_resumes_without_losing_or_repeating_rows() {
     let merged = tempfile::tempdir().unwrap();
     let dirs: Vec<PathBuf> = shards.iter().map(|d| d.path().to_path_buf()).collect();
     assert_eq!(merge_rows(&cfg, &dirs, merged.path()).unwrap(), 8);
+    assert!(
+        std::fs::read(merged.path().join("results.csv")).unwrap() == first_bytes,
+        "merged shards give the whole suite's results.csv, byte for byte"
+    );
     let rows = run_suite(&cfg, merged.path(), 1, &|_, n, _| panic!("run {n} again")).unwrap();
     for r in &all {
         let m = rows.iter().find(|x| x.run_id == r.run_id).unwrap();

@@ -20,23 +20,27 @@
 //! uninterrupted run's, whatever the thread count.
 
 use crate::config::TrainConfig;
-use crate::tasks::eemp_rl::{EempRlEnv, ACT_DIM};
-use crate::tasks::OnClosedLoop;
-use crate::train::{training_state_source, TrainOptions};
-use cmaes::{CMAESOptions, DVector, Mode};
 use eemp_core::config_error::{check_range, ConfigError};
 use eemp_core::planner::params_table::{Interpolation, ParamsTable, TableEntry};
-use eemp_core::robot::RobotConfig;
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
-use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-use std::collections::HashMap;
-use std::io::Write;
-use std::path::Path;
-use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::Mutex;
-use std::time::Instant;
+// The search itself (CMA-ES, episodes, the cache) is part of the `learning` feature.
+#[cfg(feature = "learning")]
+use {
+    crate::tasks::eemp_rl::{EempRlEnv, ACT_DIM},
+    crate::tasks::OnClosedLoop,
+    crate::train::{training_state_source, TrainOptions},
+    cmaes::{CMAESOptions, DVector, Mode},
+    eemp_core::robot::RobotConfig,
+    rand::SeedableRng,
+    rand_chacha::ChaCha8Rng,
+    rayon::prelude::*,
+    std::collections::HashMap,
+    std::io::Write,
+    std::path::Path,
+    std::sync::atomic::{AtomicUsize, Ordering},
+    std::sync::Mutex,
+    std::time::Instant,
+};
 
 /// `[cmaes]` of a training config with `optimizer = "cmaes"`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -90,9 +94,11 @@ pub struct GenerationLog {
     pub falls: usize,
 }
 
+#[cfg(feature = "learning")]
 const CSV_HEADER: &str =
     "generation,env_steps,wall_s,mean_return,best_return,sigma,episodes,falls\n";
 
+#[cfg(feature = "learning")]
 /// One candidate's evaluation.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Evaluation {
@@ -101,6 +107,7 @@ struct Evaluation {
     falls: usize,
 }
 
+#[cfg(feature = "learning")]
 /// The exact bits of a candidate: a replayed search proposes bit-identical ones.
 fn key(x: &DVector<f64>) -> String {
     x.iter().map(|v| format!("{:016x}", v.to_bits())).collect()
@@ -154,6 +161,7 @@ pub fn check_config(config: &TrainConfig) -> Result<(), ConfigError> {
     config.cmaes.validate()
 }
 
+#[cfg(feature = "learning")]
 /// Runs CMA-ES on EEMP-RL's residual; writes `cmaes.csv`, `checkpoint/evaluations.csv`,
 /// `table.toml` (the distribution's mean, the usual answer on a noisy objective) and
 /// `config.toml` in `opts.out`, and calls `on_generation` after each generation.
@@ -308,6 +316,7 @@ pub fn train_cmaes(
 }
 
 /// Candidate `x`'s fitness in generation `g`: the mean return of its episodes.
+#[cfg(feature = "learning")]
 fn evaluate(
     config: &TrainConfig,
     robot: &RobotConfig,
@@ -336,6 +345,7 @@ fn evaluate(
 
 /// Episode `index` of the run (its world, filter noise, start, commands and pushes fixed by the
 /// config's seed and `index`) under the correction `x`: (return, decisions, fell).
+#[cfg(feature = "learning")]
 fn run_episode(
     config: &TrainConfig,
     robot: &RobotConfig,
@@ -387,8 +397,10 @@ fn run_episode(
     }
 }
 
+#[cfg(feature = "learning")]
 type Cache = HashMap<(usize, String), (Evaluation, f64)>;
 
+#[cfg(feature = "learning")]
 fn read_cache(path: &Path) -> Result<Cache, String> {
     let text = match std::fs::read_to_string(path) {
         Ok(t) => t,
@@ -422,6 +434,7 @@ fn read_cache(path: &Path) -> Result<Cache, String> {
     Ok(out)
 }
 
+#[cfg(feature = "learning")]
 fn open_append(path: &Path, truncate: bool) -> Result<std::fs::File, String> {
     std::fs::OpenOptions::new()
         .create(true)
@@ -432,6 +445,7 @@ fn open_append(path: &Path, truncate: bool) -> Result<std::fs::File, String> {
         .map_err(|e| format!("cannot write {}: {e}", path.display()))
 }
 
+#[cfg(feature = "learning")]
 fn write_table(
     path: &Path,
     table: &ParamsTable,

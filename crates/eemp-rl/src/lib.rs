@@ -13,18 +13,25 @@
 // Time, env and parameter indices (t, e, i) are the algorithm's notation here.
 #![allow(clippy::needless_range_loop)]
 
+#[cfg(feature = "learning")]
 pub mod adam;
 pub mod cma_table;
 pub mod config;
+#[cfg(feature = "learning")]
 pub mod controller;
 pub mod env;
 pub mod imitation;
 pub mod mirror;
+#[cfg(feature = "learning")]
 pub mod nn;
 pub mod normalizer;
+#[cfg(feature = "learning")]
 pub mod policy;
+#[cfg(feature = "learning")]
 pub mod ppo;
 pub mod run;
 pub mod tasks;
+#[cfg(feature = "learning")]
 pub mod tensor_file;
+#[cfg(feature = "learning")]
 pub mod train;

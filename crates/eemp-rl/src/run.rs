@@ -8,7 +8,9 @@
 //! Error messages name the options as `eemp walk` spells them (`--duration`), the names a user
 //! of the command line and of a run file (whose keys are the fields) both find in `--help`.
 
+#[cfg(feature = "learning")]
 use crate::config::{TaskKind, TrainEstimator};
+#[cfg(feature = "learning")]
 use crate::policy::Policy;
 use eemp_core::config_error::load_toml;
 use eemp_core::estimator::KfConfig;
@@ -17,7 +19,9 @@ use eemp_core::planner::{FreePairing, Gait, PlannerConfig, PlannerParams, Veloci
 use eemp_core::robot::RobotConfig;
 use eemp_sim::closed_loop::{Push, StateSource, StepRecord};
 use eemp_sim::sensors::SensorNoise;
-use eemp_sim::walk::{run_walk, run_walk_with, StartPose, VelocityProfile, WalkRun, WalkSpec};
+use eemp_sim::walk::{run_walk, VelocityProfile, WalkRun, WalkSpec};
+#[cfg(feature = "learning")]
+use eemp_sim::walk::{run_walk_with, StartPose};
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
@@ -121,6 +125,7 @@ pub fn state_source(
     }
 }
 
+#[cfg(feature = "learning")]
 /// A policy trained on the filter runs on the filter it was trained on (its config's `[kf]`),
 /// except for the settings `options` names.
 pub fn adopt_policy_filter(source: &mut StateSource, policy: &Policy, options: &KfOptions) {
@@ -243,6 +248,7 @@ impl Default for WalkDescription {
 pub enum Driver {
     Eemp,
     /// A trained policy (model-free, imitation or EEMP-RL).
+    #[cfg(feature = "learning")]
     Policy(Box<Policy>),
 }
 
@@ -271,9 +277,7 @@ impl WalkDescription {
                         .into(),
                 )
             }
-            (c @ ("model-free" | "imitation" | "eemp-rl"), Some(p)) => {
-                Driver::Policy(Box::new(Policy::load(p, Some(c.parse()?))?))
-            }
+            (c @ ("model-free" | "imitation" | "eemp-rl"), Some(p)) => learned_driver(c, p)?,
             (c @ ("model-free" | "imitation" | "eemp-rl"), None) => {
                 return Err(format!(
                     "--controller {c} needs --policy FILE (e.g. policies/a1_{}.safetensors)",
@@ -314,6 +318,7 @@ impl WalkDescription {
         }
         let robot = RobotConfig::load_or_a1(self.robot.as_deref()).map_err(|e| e.to_string())?;
         let driver = match driver {
+            #[cfg(feature = "learning")]
             Driver::Policy(mut p) => {
                 p.allow_robot_mismatch = self.allow_robot_mismatch;
                 p.check_robot(&robot)?;
@@ -421,6 +426,7 @@ impl WalkDescription {
         spec.seed = self.sensing.seed;
         spec.state_source = self.sensing.source(&robot)?;
         spec.allow_robot_mismatch = self.allow_robot_mismatch;
+        #[cfg(feature = "learning")]
         if let Driver::Policy(p) = &driver {
             adopt_policy_filter(&mut spec.state_source, p, &self.sensing.kf);
         }
@@ -474,6 +480,44 @@ impl WalkDescription {
     }
 }
 
+/// The trained policy a learned `--controller` runs.
+#[cfg(feature = "learning")]
+fn learned_driver(controller: &str, policy: &std::path::Path) -> Result<Driver, String> {
+    Ok(Driver::Policy(Box::new(Policy::load(
+        policy,
+        Some(controller.parse()?),
+    )?)))
+}
+
+/// A build without the `learning` feature (`make demo`'s) has no policies to run.
+#[cfg(not(feature = "learning"))]
+fn learned_driver(controller: &str, _policy: &std::path::Path) -> Result<Driver, String> {
+    Err(format!(
+        "--controller {controller} runs a trained policy, and this eemp was built without \
+         policies (`--no-default-features`, as `make demo` builds it): build the whole \
+         command with `cargo build --release -p eemp-cli`"
+    ))
+}
+
+/// Checks what a walk's build checks of a learned `controller`'s `policy`: the file is a policy
+/// of that kind, trained on `robot` (unless `allow_robot_mismatch`). For suites, before any run.
+#[cfg_attr(not(feature = "learning"), allow(unused_variables))]
+pub fn check_policy(
+    controller: &str,
+    policy: &std::path::Path,
+    robot: &RobotConfig,
+    allow_robot_mismatch: bool,
+) -> Result<(), String> {
+    match learned_driver(controller, policy)? {
+        #[cfg(feature = "learning")]
+        Driver::Policy(mut p) => {
+            p.allow_robot_mismatch = allow_robot_mismatch;
+            p.check_robot(robot)
+        }
+        _ => Ok(()),
+    }
+}
+
 /// Eq. (6)'s factor of a walk: the one given, else the one the parameter table was selected
 /// with (a table's entries are best with the factor they were found with), else the paper's 0.5.
 pub fn progress_factor(given: Option<f64>, table: Option<&ParamsTable>) -> f64 {
@@ -487,6 +531,7 @@ impl BuiltWalk {
     pub fn method(&self) -> String {
         match &self.driver {
             Driver::Eemp => format!("EEMP ({})", self.gait),
+            #[cfg(feature = "learning")]
             Driver::Policy(p) => match p.config.task {
                 TaskKind::EempRl => "EEMP-RL".into(),
                 TaskKind::Imitation => "motion imitation".into(),
@@ -500,6 +545,7 @@ impl BuiltWalk {
         let (robot, spec) = (&self.robot, &self.spec);
         match self.driver {
             Driver::Eemp => run_walk(robot, spec, observer).map_err(|e| e.to_string()),
+            #[cfg(feature = "learning")]
             Driver::Policy(policy) if policy.config.task == TaskKind::EempRl => {
                 use crate::tasks::eemp_rl::EempRlController;
                 let cfg = policy.config.eemp_rl.clone();
@@ -511,6 +557,7 @@ impl BuiltWalk {
                 let mut c = EempRlController::new(robot, cfg, *policy)?;
                 run_walk_with(robot, spec, &start, &mut c, observer).map_err(|e| e.to_string())
             }
+            #[cfg(feature = "learning")]
             Driver::Policy(policy) => {
                 let mut c = crate::controller::PolicyController::new(
                     *policy,

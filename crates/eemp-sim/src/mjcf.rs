@@ -120,6 +120,9 @@ pub fn robot_mjcf(robot: &RobotConfig, extras: &SceneExtras) -> String {
     }
     let c = t.com_m;
     let i = t.inertia_kg_m2;
+    // `<quality>`: videos are rendered by a software rasteriser (Mesa's llvmpipe) where there is
+    // no GPU; a 1024² shadow map without multisampling renders a 480×320 frame about 3× faster
+    // than MuJoCo's defaults (4096², 4 samples), and the picture looks the same at that size.
     format!(
         r#"<mujoco model="{name}">
   <compiler angle="radian" autolimits="true"/>
@@ -127,7 +130,7 @@ pub fn robot_mjcf(robot: &RobotConfig, extras: &SceneExtras) -> String {
   <default>
     <geom contype="1" conaffinity="0" condim="3" rgba="0.3 0.3 0.35 1"/>
   </default>
-  <visual><global offwidth="1280" offheight="720"/></visual>
+  <visual><global offwidth="1280" offheight="720"/><quality shadowsize="1024" offsamples="0"/></visual>
   <asset><texture name="floor_checker" type="2d" builtin="checker" width="256" height="256" rgb1="0.85 0.85 0.85" rgb2="0.62 0.62 0.68"/><material name="floor" texture="floor_checker" texrepeat="4 4" texuniform="true"/>{assets}</asset>
   <worldbody>
     <light name="sun" pos="0 0 4" dir="0 0 -1" directional="true"/>

@@ -1112,6 +1112,7 @@ pub trait ParamsPolicy {
     }
 }
 
+#[cfg(feature = "learning")]
 impl ParamsPolicy for crate::policy::Policy {
     fn act(&mut self, obs: &[f32]) -> Option<Vec<f32>> {
         crate::policy::Policy::act(self, obs).ok()
