@@ -6,15 +6,14 @@ use eemp_core::estimator::KfConfig;
 use eemp_core::hardware::a1_protocol::LowState;
 use eemp_core::hardware::safety::SafetyConfig;
 use eemp_core::leg::{Leg, LegMap};
-use eemp_core::planner::params_table::ParamsTable;
-use eemp_core::planner::{Gait, PlannerConfig, PlannerParams, VelocityCommand};
+use eemp_core::planner::{PlannerConfig, PlannerParams, VelocityCommand};
 use eemp_core::robot::RobotConfig;
 use eemp_hw::dds::{ROBOT_DOMAIN_ID, SIM_DOMAIN_ID};
 use eemp_hw::link::{Faults, Link};
 use eemp_hw::motion_switcher::ReleaseOptions;
 use eemp_hw::runner::{run_hw, HwOptions, TorqueSpike, Transport};
 use eemp_hw::sim_robot::{run_sim_robot, RobotWire, SimRobotOptions};
-use eemp_sim::walk::{eemp_controller, StartPose, WalkSpec};
+use eemp_sim::walk::{StartPose, WalkSpec};
 use std::io::Write;
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -79,7 +78,7 @@ pub struct HwArgs {
     /// Print the first commands it would send for a robot standing still, without a socket.
     #[arg(long)]
     pub dry_run: bool,
-    /// eemp, model-free or imitation (with --policy).
+    /// eemp, model-free, imitation or eemp-rl (with --policy).
     #[arg(long, default_value = "eemp")]
     pub controller: String,
     #[arg(long)]
@@ -117,48 +116,21 @@ pub struct HwArgs {
     pub out: Option<PathBuf>,
 }
 
-fn controller_for(
-    args: &HwArgs,
-    robot: &RobotConfig,
-) -> Result<Box<dyn eemp_core::control::Controller>, String> {
-    let dt = 1.0 / args.rate;
-    match args.controller.as_str() {
-        "eemp" => {
-            let gait: Gait = args.gait.parse()?;
-            let mut spec = WalkSpec::constant(
-                PlannerConfig {
-                    gait,
-                    ..Default::default()
-                },
-                PlannerParams::default(),
-                VelocityCommand::default(),
-                args.duration,
-            );
-            let table = args
-                .params_table
-                .clone()
-                .unwrap_or_else(|| robot.shipped_table_path(gait));
-            spec.params_table = Some(ParamsTable::load(&table).map_err(|e| e.to_string())?);
-            spec.allow_robot_mismatch = args.robot.allow_robot_mismatch;
-            Ok(Box::new(
-                eemp_controller(robot, &spec).map_err(|e| e.to_string())?,
-            ))
-        }
-        c @ ("model-free" | "imitation") => {
-            let p = args
-                .policy
-                .as_ref()
-                .ok_or_else(|| format!("--controller {c} needs --policy FILE"))?;
-            let mut policy = eemp_rl::policy::Policy::load(p, Some(c.parse()?))?;
-            policy.allow_robot_mismatch = args.robot.allow_robot_mismatch;
-            Ok(Box::new(eemp_rl::controller::PolicyController::new(
-                policy, robot, dt,
-            )?))
-        }
-        other => Err(format!(
-            "unknown --controller '{other}': allowed eemp, model-free, imitation"
-        )),
+/// The controller the arguments describe, built by the walk's own description (the same
+/// defaults, tables, policies and checks as `eemp walk`).
+fn controller_for(args: &HwArgs) -> Result<Box<dyn eemp_core::control::Controller>, String> {
+    eemp_rl::run::WalkDescription {
+        robot: args.robot.robot.clone(),
+        allow_robot_mismatch: args.robot.allow_robot_mismatch,
+        controller: args.controller.clone(),
+        policy: args.policy.clone(),
+        gait: args.gait.clone(),
+        params_table: args.params_table.clone(),
+        duration_s: args.duration,
+        ..Default::default()
     }
+    .build()?
+    .into_controller(1.0 / args.rate)
 }
 
 /// The state datagram of the A1 standing still, level, in the standing pose.
@@ -260,7 +232,7 @@ pub fn run_hw_cmd(args: &HwArgs) -> Result<(), String> {
         }),
     };
     opts.validate()?;
-    let mut controller = controller_for(args, &robot)?;
+    let mut controller = controller_for(args)?;
     let command = VelocityCommand {
         vx_mps: args.speed,
         vy_mps: args.lateral,

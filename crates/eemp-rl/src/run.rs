@@ -13,6 +13,7 @@ use crate::config::{TaskKind, TrainEstimator};
 #[cfg(feature = "learning")]
 use crate::policy::Policy;
 use eemp_core::config_error::load_toml;
+use eemp_core::control::Controller;
 use eemp_core::estimator::KfConfig;
 use eemp_core::planner::params_table::ParamsTable;
 use eemp_core::planner::{FreePairing, Gait, PlannerConfig, PlannerParams, VelocityCommand};
@@ -537,6 +538,28 @@ impl BuiltWalk {
                 TaskKind::Imitation => "motion imitation".into(),
                 _ => "model-free RL".into(),
             },
+        }
+    }
+
+    /// The walk's controller for a loop of the caller's own stepping at `timestep_s` (the
+    /// hardware runner's), built as [`BuiltWalk::run`] builds it for the simulation.
+    #[cfg_attr(not(feature = "learning"), allow(unused_variables))]
+    pub fn into_controller(self, timestep_s: f64) -> Result<Box<dyn Controller>, String> {
+        let robot = &self.robot;
+        match self.driver {
+            Driver::Eemp => Ok(Box::new(
+                eemp_sim::walk::eemp_controller(robot, &self.spec).map_err(|e| e.to_string())?,
+            )),
+            #[cfg(feature = "learning")]
+            Driver::Policy(policy) if policy.config.task == TaskKind::EempRl => {
+                use crate::tasks::eemp_rl::EempRlController;
+                let cfg = policy.config.eemp_rl.clone();
+                Ok(Box::new(EempRlController::new(robot, cfg, *policy)?))
+            }
+            #[cfg(feature = "learning")]
+            Driver::Policy(policy) => Ok(Box::new(crate::controller::PolicyController::new(
+                *policy, robot, timestep_s,
+            )?)),
         }
     }
 
