@@ -61,8 +61,11 @@ test: $(MUJOCO) $(DDS_PEER) $(VENV)
 	EEMP_REQUIRE_DDS_PEER=1 $(CLIPPY_IN_BUILD) $(PY_ENV) cargo test $(TEST_SCOPE)
 	$(MAKE) python-dev-test
 
+# Also lints `make demo`'s build (no default features): not in `make test`, where its other
+# feature set would recompile ≈ 60 dependencies (≈ 2 min on 2 cores).
 lint:
 	cargo clippy --workspace --all-targets --features eemp-cli/rerun -- -D warnings
+	cargo clippy -p eemp-cli --no-default-features -- -D warnings
 
 # The Python package (crates/eemp-py): an optimised wheel (profile `python`: release without debug
 # info) in target/wheels with libmujoco inside (auditwheel repair), installed into .venv with its

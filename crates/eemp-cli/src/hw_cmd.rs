@@ -6,13 +6,14 @@ use eemp_core::estimator::KfConfig;
 use eemp_core::hardware::a1_protocol::LowState;
 use eemp_core::hardware::safety::SafetyConfig;
 use eemp_core::leg::{Leg, LegMap};
-use eemp_core::planner::{PlannerConfig, PlannerParams, VelocityCommand};
+use eemp_core::planner::{Gait, PlannerConfig, PlannerParams, VelocityCommand};
 use eemp_core::robot::RobotConfig;
 use eemp_hw::dds::{ROBOT_DOMAIN_ID, SIM_DOMAIN_ID};
 use eemp_hw::link::{Faults, Link};
 use eemp_hw::motion_switcher::ReleaseOptions;
 use eemp_hw::runner::{run_hw, HwOptions, TorqueSpike, Transport};
 use eemp_hw::sim_robot::{run_sim_robot, RobotWire, SimRobotOptions};
+use eemp_rl::run::{BuiltWalk, Sensing, WalkDescription};
 use eemp_sim::walk::{StartPose, WalkSpec};
 use std::io::Write;
 use std::net::SocketAddr;
@@ -116,21 +117,35 @@ pub struct HwArgs {
     pub out: Option<PathBuf>,
 }
 
-/// The controller the arguments describe, built by the walk's own description (the same
-/// defaults, tables, policies and checks as `eemp walk`).
-fn controller_for(args: &HwArgs) -> Result<Box<dyn eemp_core::control::Controller>, String> {
-    eemp_rl::run::WalkDescription {
+/// The run the arguments describe, built by the walk's own description: `eemp walk
+/// --estimator kf`'s defaults, tables, policies, filter settings and checks. On a robot, EEMP's
+/// table must exist (no fallback to Table II's constants, which were tuned for the A1).
+fn describe(args: &HwArgs, robot: &RobotConfig) -> Result<BuiltWalk, String> {
+    let params_table = if args.controller == "eemp" {
+        let gait: Gait = args.gait.parse()?;
+        Some(
+            args.params_table
+                .clone()
+                .unwrap_or_else(|| robot.shipped_table_path(gait)),
+        )
+    } else {
+        args.params_table.clone()
+    };
+    WalkDescription {
         robot: args.robot.robot.clone(),
         allow_robot_mismatch: args.robot.allow_robot_mismatch,
         controller: args.controller.clone(),
         policy: args.policy.clone(),
         gait: args.gait.clone(),
-        params_table: args.params_table.clone(),
+        params_table,
+        sensing: Sensing {
+            estimator: "kf".into(),
+            ..Default::default()
+        },
         duration_s: args.duration,
         ..Default::default()
     }
-    .build()?
-    .into_controller(1.0 / args.rate)
+    .build()
 }
 
 /// The state datagram of the A1 standing still, level, in the standing pose.
@@ -214,7 +229,7 @@ pub fn run_hw_cmd(args: &HwArgs) -> Result<(), String> {
             }
         }
     };
-    let opts = HwOptions {
+    let mut opts = HwOptions {
         transport,
         rate_hz: args.rate,
         duration_s: if args.dry_run {
@@ -223,6 +238,7 @@ pub fn run_hw_cmd(args: &HwArgs) -> Result<(), String> {
             args.duration
         },
         safety,
+        // Replaced below by the run's own, once the options are known to be valid.
         kf: KfConfig::default(),
         torque_spike: args.spike_at.map(|at_s| TorqueSpike {
             at_s,
@@ -232,7 +248,16 @@ pub fn run_hw_cmd(args: &HwArgs) -> Result<(), String> {
         }),
     };
     opts.validate()?;
-    let mut controller = controller_for(args)?;
+    let run = describe(args, &robot)?;
+    // The filter as `eemp walk --estimator kf` runs it (a policy trained on the filter: its
+    // training's settings).
+    opts.kf = run
+        .spec
+        .state_source
+        .kf_config()
+        .cloned()
+        .ok_or("the description runs on the filter")?;
+    let mut controller = run.into_controller(1.0 / args.rate)?;
     let command = VelocityCommand {
         vx_mps: args.speed,
         vy_mps: args.lateral,

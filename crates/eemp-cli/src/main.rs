@@ -20,6 +20,24 @@ struct Cli {
     command: Command,
 }
 
+/// A command this build leaves out (`make demo` builds `--no-default-features`): whatever
+/// follows it, to say so instead of clap's "unrecognized subcommand".
+#[cfg(not(all(feature = "learning", feature = "hardware")))]
+#[derive(clap::Args)]
+struct NotBuilt {
+    #[arg(trailing_var_arg = true, allow_hyphen_values = true, hide = true)]
+    _args: Vec<String>,
+}
+
+#[cfg(not(all(feature = "learning", feature = "hardware")))]
+fn not_built(command: &str, feature: &str) -> String {
+    format!(
+        "`eemp {command}` is not in this build: it was built without the `{feature}` feature \
+         (`--no-default-features`, as `make demo` builds it); build the whole command with \
+         `cargo build --release -p eemp-cli`"
+    )
+}
+
 #[derive(Subcommand)]
 enum Command {
     /// Rise from the ground and follow a body-motion profile on four stance legs.
@@ -32,6 +50,9 @@ enum Command {
     #[cfg(feature = "learning")]
     /// Train a learned controller with PPO (resumable); policy, log and curves in --out.
     Train(train_cmd::TrainArgs),
+    #[cfg(not(feature = "learning"))]
+    /// (Not in this build: `cargo build --release -p eemp-cli` builds it.)
+    Train(NotBuilt),
     /// Retarget a raw dog motion-capture clip to an A1 reference motion (imitation baseline).
     Retarget(retarget_cmd::RetargetArgs),
     #[cfg(feature = "hardware")]
@@ -40,6 +61,12 @@ enum Command {
     #[cfg(feature = "hardware")]
     /// A MuJoCo A1 that speaks the A1's low-level protocol on UDP (for `eemp hw`).
     SimRobot(hw_cmd::SimRobotArgs),
+    #[cfg(not(feature = "hardware"))]
+    /// (Not in this build: `cargo build --release -p eemp-cli` builds it.)
+    Hw(NotBuilt),
+    #[cfg(not(feature = "hardware"))]
+    /// (Not in this build: `cargo build --release -p eemp-cli` builds it.)
+    SimRobot(NotBuilt),
     /// Drive EEMP in the simulation from a gamepad, the keyboard or a command script.
     Teleop(teleop_cmd::TeleopArgs),
     /// Render a video of a finished walk from its trace.
@@ -116,6 +143,9 @@ enum BenchCommand {
         #[arg(long, value_delimiter = ',', default_value = "128,128")]
         hidden: Vec<usize>,
     },
+    #[cfg(not(feature = "learning"))]
+    /// (Not in this build: `cargo build --release -p eemp-cli` builds it.)
+    Rl(NotBuilt),
 }
 
 fn main() {
@@ -126,6 +156,12 @@ fn main() {
         Command::Sweep(args) => sweep_cmd::run(&args),
         #[cfg(feature = "learning")]
         Command::Train(args) => train_cmd::run(&args),
+        #[cfg(not(feature = "learning"))]
+        Command::Train(_) => Err(not_built("train", "learning")),
+        #[cfg(not(feature = "hardware"))]
+        Command::Hw(_) => Err(not_built("hw", "hardware")),
+        #[cfg(not(feature = "hardware"))]
+        Command::SimRobot(_) => Err(not_built("sim-robot", "hardware")),
         Command::Retarget(args) => retarget_cmd::run(&args),
         #[cfg(feature = "hardware")]
         Command::Hw(args) => hw_cmd::run_hw_cmd(&args),
@@ -221,6 +257,11 @@ fn main() {
                 );
                 println!("{}", r.json_line());
             }),
+        #[cfg(not(feature = "learning"))]
+        Command::Bench {
+            what: BenchCommand::Rl(_),
+            ..
+        } => Err(not_built("bench rl", "learning")),
         Command::Model { robot, scenario } => (|| {
             let robot = match robot {
                 Some(p) => eemp_core::robot::RobotConfig::load(&p).map_err(|e| e.to_string())?,

@@ -1,4 +1,4 @@
-//! `eemp walk --rerun FILE.rrd` (a build with `--features rerun`, as `make test` builds).
+//! `eemp walk --rerun FILE.rrd` (a build with `--features rerun`, as `make viewer-test` builds).
 #![cfg(feature = "rerun")]
 
 use std::process::Command;

@@ -318,8 +318,8 @@ impl WalkDescription {
             ));
         }
         let robot = RobotConfig::load_or_a1(self.robot.as_deref()).map_err(|e| e.to_string())?;
+        #[cfg(feature = "learning")]
         let driver = match driver {
-            #[cfg(feature = "learning")]
             Driver::Policy(mut p) => {
                 p.allow_robot_mismatch = self.allow_robot_mismatch;
                 p.check_robot(&robot)?;
@@ -502,21 +502,27 @@ fn learned_driver(controller: &str, _policy: &std::path::Path) -> Result<Driver,
 
 /// Checks what a walk's build checks of a learned `controller`'s `policy`: the file is a policy
 /// of that kind, trained on `robot` (unless `allow_robot_mismatch`). For suites, before any run.
-#[cfg_attr(not(feature = "learning"), allow(unused_variables))]
+#[cfg(feature = "learning")]
 pub fn check_policy(
     controller: &str,
     policy: &std::path::Path,
     robot: &RobotConfig,
     allow_robot_mismatch: bool,
 ) -> Result<(), String> {
-    match learned_driver(controller, policy)? {
-        #[cfg(feature = "learning")]
-        Driver::Policy(mut p) => {
-            p.allow_robot_mismatch = allow_robot_mismatch;
-            p.check_robot(robot)
-        }
-        _ => Ok(()),
-    }
+    let mut p = Policy::load(policy, Some(controller.parse()?))?;
+    p.allow_robot_mismatch = allow_robot_mismatch;
+    p.check_robot(robot)
+}
+
+/// Without the `learning` feature no policy runs: says so.
+#[cfg(not(feature = "learning"))]
+pub fn check_policy(
+    controller: &str,
+    policy: &std::path::Path,
+    _robot: &RobotConfig,
+    _allow_robot_mismatch: bool,
+) -> Result<(), String> {
+    learned_driver(controller, policy).map(|_| ())
 }
 
 /// Eq. (6)'s factor of a walk: the one given, else the one the parameter table was selected

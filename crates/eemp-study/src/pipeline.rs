@@ -354,8 +354,12 @@ pub fn parse_shard(s: &str) -> Result<(usize, usize), String> {
     Ok((k, n))
 }
 
+/// Files a folder's hash leaves out: what no two runs share (a suite's per-run wall times).
+pub const UNHASHED_FILES: &[&str] = &["timing.csv"];
+
 /// The SHA-256 of a file, or of a folder: of its files' relative paths and hashes, sorted, so
-/// the same content gives the same hash wherever it lies. `None` when nothing is there.
+/// the same content gives the same hash wherever it lies (less [`UNHASHED_FILES`]). `None` when
+/// nothing is there.
 pub fn hash_path(path: &Path) -> std::io::Result<Option<String>> {
     if path.is_file() {
         let bytes = std::fs::read(path)?;
@@ -384,7 +388,7 @@ fn collect_files(base: &Path, dir: &Path, out: &mut Vec<String>) -> std::io::Res
         let p = e.path();
         if p.is_dir() {
             collect_files(base, &p, out)?;
-        } else {
+        } else if !UNHASHED_FILES.contains(&e.file_name().to_string_lossy().as_ref()) {
             let rel = p.strip_prefix(base).expect("inside").to_string_lossy();
             out.push(rel.replace('\\', "/"));
         }
@@ -732,6 +736,9 @@ copy = ["{work}", "reports/c"]
             std::fs::write(d.path().join(base).join("sub/y.txt"), "y").unwrap();
         }
         let h = |p: &str| hash_path(&d.path().join(p)).unwrap();
+        assert_eq!(h("a"), h("b"));
+        // Wall times do not count: two reproductions differ in them and nowhere else.
+        std::fs::write(d.path().join("b/timing.csv"), "run_id,wall_s\nr,1.5\n").unwrap();
         assert_eq!(h("a"), h("b"));
         // sha256("x"), as `printf x | sha256sum` gives it.
         assert_eq!(
