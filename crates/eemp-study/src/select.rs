@@ -773,7 +773,7 @@ fn instability(speeds: &[SpeedChoice]) -> Option<Instability> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::grid::RunSpec;
     use crate::store::RunOutcome;
@@ -790,7 +790,9 @@ mod tests {
         row_full(gait, speed, p, seed, cot, 3.0, 0.1)
     }
 
-    fn row_full(
+    /// A result row of the grid point (`gait`, `speed`, `p`): 18 s of metrics at the commanded
+    /// speed; `cot: None` = the run fell. (The sensitivity study's tests build theirs on it.)
+    pub(crate) fn row_full(
         gait: Gait,
         speed: f64,
         p: PlannerParams,

@@ -236,32 +236,13 @@ pub fn analyse_variant(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::grid::{GridPoint, RunSpec};
-    use crate::store::RunOutcome;
 
     /// A run whose CoT under each definition is given; it stands and follows its command.
     fn row(gait: Gait, speed: f64, p: PlannerParams, cot: [f64; 3]) -> ResultRow {
-        let spec = RunSpec {
-            index: 0,
-            point: GridPoint {
-                gait,
-                speed_mps: speed,
-                params: p,
-                duration_s: 20.0,
-            },
-            seed: 0,
-        };
-        let outcome = RunOutcome {
-            cot: Some(cot[0]),
-            cot_abs_power: Some(cot[1]),
-            cot_electrical: Some(cot[2]),
-            manipulability: Some(3.0),
-            vel_rmse_mps: Some(0.05),
-            distance_m: speed * 18.0,
-            metrics_window_s: 18.0,
-            ..Default::default()
-        };
-        ResultRow::new(&spec, &outcome, 1.0)
+        let mut r = crate::select::tests::row_full(gait, speed, p, 0, Some(cot[0]), 3.0, 0.05);
+        r.cot_abs_power = Some(cot[1]);
+        r.cot_electrical = Some(cot[2]);
+        r
     }
 
     #[test]
