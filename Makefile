@@ -25,9 +25,10 @@ demo: $(MUJOCO)
 stand: $(MUJOCO)
 	cargo run $(DEMO_BUILD) -- stand --duration 20 --out out/stand
 
-# `make test` leaves out the optional Rerun recorder (the eemp-viz crate and `eemp-cli/rerun`):
-# Rerun's ≈ 300 crates were 35 % of a fresh 2-core clone's test build (≈ 3.8 min), more than the
-# 12 min budget leaves; `make viewer-test` builds and tests it (docs/viewer.md).
+# `make test` tests the Rerun recorder through Python's rerun-sdk (in .venv; EEMP_PYTHON picks
+# it, EEMP_REQUIRE_RERUN makes its absence a failure). Rerun's Rust SDK (`eemp-viz/sdk`,
+# `eemp-cli/rerun`) is left out: its ≈ 300 crates were 35 % of a fresh 2-core clone's test
+# build (≈ 3.8 min), more than the 12 min budget leaves; `make viewer-test` tests it.
 # Clippy lints inside the test build: clippy-driver compiles the workspace's own crates, as
 # `cargo clippy` has it do (the same two variables), so the dependencies are compiled once
 # instead of also being checked by a separate `cargo clippy` (≈ 5 min less on a fresh 2-core
@@ -53,12 +54,13 @@ dds-peer: $(DDS_PEER)
 # a wheel's `maturin build -p eemp-py` resolves other features than the workspace's test build
 # and recompiled ~100 dependencies (≈ 3.5 min on 2 cores). `make python` builds the wheel,
 # `make python-test` tests it.
-TEST_SCOPE := --workspace --exclude eemp-viz
+TEST_SCOPE := --workspace
 PY_ENV := PYO3_PYTHON="$(CURDIR)/.venv/bin/python"
+RERUN_PY := EEMP_PYTHON="$(CURDIR)/.venv/bin/python" EEMP_REQUIRE_RERUN=1
 
 test: $(MUJOCO) $(DDS_PEER) $(VENV)
 	cargo fmt --all -- --check
-	EEMP_REQUIRE_DDS_PEER=1 $(CLIPPY_IN_BUILD) $(PY_ENV) cargo test $(TEST_SCOPE)
+	EEMP_REQUIRE_DDS_PEER=1 $(RERUN_PY) $(CLIPPY_IN_BUILD) $(PY_ENV) cargo test $(TEST_SCOPE)
 	$(MAKE) python-dev-test
 
 # Also lints `make demo`'s build (no default features): not in `make test`, where its other
@@ -98,17 +100,19 @@ python-dev-test: $(MUJOCO) $(VENV)
 	cp target/debug/lib_eemp.so $(PYDEV)/eemp/_eemp.so
 	PYTHONPATH=$(CURDIR)/$(PYDEV) .venv/bin/python -m pytest -q crates/eemp-py/tests
 
-# `eemp` with the Rerun recorder (--rerun FILE.rrd, --rerun-connect, --rerun-serve): Rerun's
-# ~300 extra crates, a few minutes more on 2 cores than the default build. The viewer itself:
-# pip install rerun-sdk==0.36.3 (the same minor version as the recorder).
+# Every `eemp` records (--rerun FILE.rrd, --rerun-connect, --rerun-serve) through a Python with
+# rerun-sdk 0.36.3, which also brings the viewer (`rerun`): `make python` puts one in .venv
+# (EEMP_PYTHON=.venv/bin/python), or pip install rerun-sdk==0.36.3. `make viewer` builds
+# `eemp` with Rerun's Rust SDK inside instead (no Python needed to record): ~300 more crates, a
+# few minutes more on 2 cores.
 viewer: $(MUJOCO)
 	cargo build --release -p eemp-cli --features rerun
 
-# The recorder's tests (a walk's recording read back with Rerun's own query engine, the CLI's
-# --rerun options, a viewer that never answers), with clippy, as `make test` runs the rest.
-viewer-test: $(MUJOCO)
-	$(CLIPPY_IN_BUILD) cargo test -p eemp-viz
-	$(CLIPPY_IN_BUILD) cargo test -p eemp-cli --features rerun --lib --bins --test rerun
+# The recorder's tests with the Rust SDK too (every recording read back with rerun-sdk's own
+# reader, the CLI's --rerun options, a viewer that never answers), with clippy, as `make test`.
+viewer-test: $(MUJOCO) $(VENV)
+	$(RERUN_PY) $(CLIPPY_IN_BUILD) cargo test -p eemp-viz --features sdk
+	$(RERUN_PY) $(CLIPPY_IN_BUILD) cargo test -p eemp-cli --features rerun --lib --bins --test rerun
 
 bench: $(MUJOCO)
 	cargo run --release -p eemp-cli -- bench mpc

@@ -109,8 +109,9 @@ enum BenchCommand {
         #[arg(long, default_value_t = eemp_core::convex_mpc::MpcConfig::default().horizon)]
         horizon: usize,
     },
-    /// What the Rerun recorder costs a walk (a build with `--features rerun`): real-time factor
-    /// without it, recording to a file, and streaming to a viewer that never answers.
+    /// What the Rerun recorder costs a walk (this build's recorder: Python's rerun-sdk, or the
+    /// Rust SDK with `--features rerun`): real-time factor without it, recording to a file, and
+    /// streaming to a viewer that never answers.
     Viewer {
         /// Simulated seconds per walk, [1, 600].
         #[arg(long, default_value_t = 10.0)]
@@ -231,16 +232,7 @@ fn main() {
         } => eemp_cli::robot_arg::load_robot(robot.as_deref())
             .and_then(|robot| eemp_cli::bench_viewer::bench_viewer(duration, rounds, &robot))
             .map(|r| {
-                println!(
-                "real-time factor, best of {rounds}: no recorder {:.1}x, to a file {:.1}x ({:.2}), \
-                 to a viewer that never answers {:.1}x ({:.2}, {} frames dropped)",
-                r.rtf[0],
-                r.rtf[1],
-                r.rtf[1] / r.rtf[0],
-                r.rtf[2],
-                r.rtf[2] / r.rtf[0],
-                r.dropped_stuck
-            );
+                println!("{}", r.table(rounds));
                 println!("{}", r.json_line());
             }),
         Command::Bench {

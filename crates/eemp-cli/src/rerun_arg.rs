@@ -1,14 +1,11 @@
 //! `--rerun FILE.rrd`, `--rerun-connect ADDR`, `--rerun-serve PORT`: a Rerun recording of the
-//! run (issue 23). The recorder is the optional `eemp-viz` crate (`--features rerun`, `make
-//! viewer`): a default build accepts the options and says how to get it.
+//! run (issue 23), written by the `eemp-viz` recorder: through Python's rerun-sdk in every
+//! build, or by Rerun's Rust SDK in a build with `--features rerun` (`make viewer`).
 
 use eemp_sim::closed_loop::{StateSource, StepRecord};
 use eemp_sim::walk::WalkSpec;
+use eemp_viz::{Recorder as Backend, RerunOptions, RerunTarget};
 use std::path::PathBuf;
-
-/// How to build an `eemp` that records (the default build does not pay for Rerun's ~400 crates).
-pub const HOW_TO_BUILD: &str =
-    "this eemp was built without Rerun: build it with `make viewer` (cargo build --release -p eemp-cli --features rerun)";
 
 #[derive(clap::Args, Clone, Debug)]
 pub struct RerunArgs {
@@ -28,6 +25,11 @@ pub struct RerunArgs {
     /// at the step they happen whatever it is.
     #[arg(long, default_value_t = 100.0)]
     pub rerun_hz: f64,
+    /// Record through this Python's rerun-sdk (pip install rerun-sdk==0.36.3). Default:
+    /// $EEMP_PYTHON or python3; a build with Rerun's Rust SDK (`make viewer`) uses that unless
+    /// this is given.
+    #[arg(long, value_name = "PY")]
+    pub rerun_python: Option<PathBuf>,
 }
 
 impl RerunArgs {
@@ -58,9 +60,7 @@ impl RerunArgs {
     }
 
     /// [`RerunArgs::open`] for any world (a replayed trace).
-    #[cfg(feature = "rerun")]
     pub fn open_world(&self, world: World) -> Result<Recorder, String> {
-        use eemp_viz::{RerunOptions, RerunTarget};
         let target = match (&self.rerun, &self.rerun_connect, self.rerun_serve) {
             (Some(p), _, _) => RerunTarget::File(p.clone()),
             (_, Some(a), _) => RerunTarget::Connect(a.clone()),
@@ -80,6 +80,10 @@ impl RerunArgs {
         };
         let mut options = RerunOptions::new(target);
         options.frame_hz = self.rerun_hz;
+        if let Some(py) = &self.rerun_python {
+            options.recorder = Backend::Python(py.clone());
+        }
+        let backend = options.recorder.name();
         let view = eemp_viz::RunView {
             name: world.name.to_string(),
             step_s: world.step_s,
@@ -89,21 +93,12 @@ impl RerunArgs {
             estimated: world.estimated,
         };
         let sink = eemp_viz::RerunSink::open(&options, &view).map_err(|e| e.to_string())?;
-        eprintln!("rerun: {describe}");
+        eprintln!("rerun: {describe}, by {backend}");
         Ok(Recorder {
             sink: Some(sink),
             hz: self.rerun_hz,
+            backend,
         })
-    }
-
-    #[cfg(not(feature = "rerun"))]
-    pub fn open_world(&self, _world: World) -> Result<Recorder, String> {
-        if !self.wanted() {
-            return Ok(Recorder::none());
-        }
-        Err(format!(
-            "--rerun, --rerun-connect and --rerun-serve: {HOW_TO_BUILD}"
-        ))
     }
 }
 
@@ -121,33 +116,29 @@ pub struct World<'a> {
 
 /// The run's recorder (or none): an observer on the closed loop.
 pub struct Recorder {
-    #[cfg(feature = "rerun")]
     sink: Option<eemp_viz::RerunSink>,
-    #[cfg(feature = "rerun")]
     hz: f64,
+    backend: String,
 }
 
 impl Recorder {
     fn none() -> Self {
         Recorder {
-            #[cfg(feature = "rerun")]
             sink: None,
-            #[cfg(feature = "rerun")]
             hz: 0.0,
+            backend: String::new(),
         }
     }
 
-    pub fn observe(&mut self, _record: &StepRecord) {
-        #[cfg(feature = "rerun")]
+    pub fn observe(&mut self, record: &StepRecord) {
         if let Some(s) = &mut self.sink {
-            s.observe(_record);
+            s.observe(record);
         }
     }
 
     /// Writes out what is queued; what the recording holds and lost, for summary.json (None
     /// without a recording). Losses are warned about.
     pub fn finish(self) -> Option<serde_json::Value> {
-        #[cfg(feature = "rerun")]
         if let Some(s) = self.sink {
             let r = s.finish();
             if r.dropped > 0 || r.log_errors > 0 || !r.flushed {
@@ -165,6 +156,7 @@ impl Recorder {
             }
             return Some(serde_json::json!({
                 "rerun_version": eemp_viz::RERUN_VERSION,
+                "recorder": self.backend,
                 "frame_hz": self.hz,
                 "frames": r.frames,
                 "touchdowns": r.touchdowns,

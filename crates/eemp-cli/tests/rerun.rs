@@ -1,10 +1,13 @@
-//! `eemp walk --rerun FILE.rrd` (a build with `--features rerun`, as `make viewer-test` builds).
-#![cfg(feature = "rerun")]
+//! `eemp walk --rerun FILE.rrd`: recorded through Python's rerun-sdk (`$EEMP_PYTHON`, the
+//! repository's .venv), and by Rerun's Rust SDK in a build with `--features rerun`.
 
 use std::process::Command;
 
 #[test]
 fn a_walk_records_to_rerun_and_says_so_in_its_summary() {
+    let Some(python) = eemp_viz::testing::python() else {
+        return;
+    };
     let dir = tempfile::tempdir().unwrap();
     let rrd = dir.path().join("walk.rrd");
     let out = dir.path().join("out");
@@ -24,6 +27,7 @@ fn a_walk_records_to_rerun_and_says_so_in_its_summary() {
         .arg(&rrd)
         .arg("--out")
         .arg(&out)
+        .env("EEMP_PYTHON", &python)
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -33,6 +37,15 @@ fn a_walk_records_to_rerun_and_says_so_in_its_summary() {
     assert_eq!(r["frames"], 100, "{r}");
     assert_eq!(r["dropped"], 0, "{r}");
     assert_eq!(r["flushed"], true, "{r}");
+    let by = r["recorder"].as_str().unwrap();
+    assert!(
+        by.contains(if cfg!(feature = "rerun") {
+            "Rust SDK"
+        } else {
+            "Python"
+        }),
+        "{by}"
+    );
     assert!(std::fs::metadata(&rrd).unwrap().len() > 10_000);
 }
 
@@ -68,10 +81,44 @@ fn a_recording_that_cannot_be_made_stops_the_walk_before_it_starts() {
         assert!(err.contains(says), "{flag} {value}: {err}");
         assert!(!out.exists(), "{flag} {value}: nothing written");
     }
+    // A Python that is not there, and one that ends without opening the recording (as one
+    // without rerun-sdk would): refused before the walk, saying how to record.
+    let silent = dir.path().join("silent-python");
+    std::fs::write(&silent, "#!/bin/sh\nexit 0\n").unwrap();
+    let mut perms = std::fs::metadata(&silent).unwrap().permissions();
+    std::os::unix::fs::PermissionsExt::set_mode(&mut perms, 0o755);
+    std::fs::set_permissions(&silent, perms).unwrap();
+    for (python, says) in [
+        (dir.path().join("no/python3"), "cannot run the Python"),
+        (silent, "ended before opening the recording"),
+    ] {
+        let o = Command::new(env!("CARGO_BIN_EXE_eemp"))
+            .args(["walk", "--duration", "1", "--rerun-python"])
+            .arg(&python)
+            .arg("--rerun")
+            .arg(dir.path().join("py.rrd"))
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{}: {err}", python.display());
+        assert!(err.contains(says), "{}: {err}", python.display());
+        assert!(err.contains("pip install rerun-sdk==0.36.3"), "{err}");
+        assert!(!out.exists(), "{}: nothing written", python.display());
+        assert!(
+            !dir.path().join("py.rrd").exists(),
+            "{}: no empty recording left",
+            python.display()
+        );
+    }
 }
 
 #[test]
 fn a_replay_simulates_the_walk_again_and_records_its_geometry_when_the_trace_matches() {
+    let Some(python) = eemp_viz::testing::python() else {
+        return;
+    };
     let dir = tempfile::tempdir().unwrap();
     let walk = dir.path().join("walk");
     let o = Command::new(env!("CARGO_BIN_EXE_eemp"))
@@ -96,6 +143,7 @@ fn a_replay_simulates_the_walk_again_and_records_its_geometry_when_the_trace_mat
             .arg(&walk)
             .args(["--rerun", rrd, "--rerun-hz", "50"])
             .args(extra)
+            .env("EEMP_PYTHON", &python)
             .current_dir(dir.path())
             .output()
             .unwrap();

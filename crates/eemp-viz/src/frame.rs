@@ -62,3 +62,17 @@ pub enum Message {
     Touchdown(Touchdown),
     Push(PushEvent),
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The file target's queue holds 16384 frames (target.rs): its memory bound rests on a
+    /// frame's size (boxed, no heap parts besides the box).
+    #[test]
+    fn a_queued_frame_stays_small() {
+        let bytes = std::mem::size_of::<Frame>();
+        println!("a Frame is {bytes} bytes");
+        assert!(bytes <= 4096, "a Frame is {bytes} bytes");
+    }
+}

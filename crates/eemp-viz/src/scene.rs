@@ -2,8 +2,8 @@
 //! geometry: each geom under its body's entity with its local pose, so that one transform per
 //! body and frame moves the robot.
 
+use crate::ops::{Op, Ops, Rgba, Shape};
 use mujoco_rs::prelude::*;
-use rerun::RecordingStream;
 
 /// Entity paths of the truth, the estimate's ghost and the terrain.
 pub const ROBOT: &str = "world/robot";
@@ -34,14 +34,10 @@ fn f32x3(v: [f64; 3]) -> [f32; 3] {
     [v[0] as f32, v[1] as f32, v[2] as f32]
 }
 
-/// Logs every geom of the model, static: robot geoms under `world/robot/<body>/<geom>` (and
-/// a translucent copy under `world/estimate/…` when `ghost`), world geoms other than the
+/// Every geom of the model, static: robot geoms under `world/robot/<body>/<geom>` (and a
+/// translucent copy under `world/estimate/…` when `ghost`), world geoms other than the
 /// infinite floor under `world/terrain/<geom>` (the viewer draws its own ground grid).
-pub fn log_static_scene(
-    rec: &RecordingStream,
-    model: &MjModel,
-    ghost: bool,
-) -> rerun::RecordingStreamResult<()> {
+pub fn static_scene(ops: &mut Ops, model: &MjModel, ghost: bool) {
     let bodies = robot_bodies(model);
     let body_name = |b: usize| {
         bodies
@@ -55,20 +51,19 @@ pub fn log_static_scene(
         if body == 0 && kind == MjtGeomBase::mjGEOM_PLANE {
             continue;
         }
+        let Some(shape) = shape(model, g, kind) else {
+            // Planes on a body and meshes do not occur in the generated models.
+            continue;
+        };
         let rgba = model.geom_rgba()[g];
-        let colour = |a: f32| {
-            rerun::Color::from_unmultiplied_rgba(
+        let colour = |a: f32| -> Rgba {
+            [
                 (rgba[0] * 255.0) as u8,
                 (rgba[1] * 255.0) as u8,
                 (rgba[2] * 255.0) as u8,
                 (a * 255.0) as u8,
-            )
+            ]
         };
-        let q = model.geom_quat()[g];
-        let local =
-            rerun::Transform3D::from_translation(f32x3(model.geom_pos()[g])).with_quaternion(
-                rerun::Quaternion::from_wxyz([q[0] as f32, q[1] as f32, q[2] as f32, q[3] as f32]),
-            );
         let mut places = Vec::new();
         match body_name(body) {
             Some(b) => {
@@ -79,77 +74,58 @@ pub fn log_static_scene(
                 if ghost {
                     places.push((
                         format!("{GHOST}/{b}/{}", geom_name(model, g)),
-                        rerun::Color::from_unmultiplied_rgba(90, 140, 255, 90),
+                        [90, 140, 255, 90],
                     ));
                 }
             }
             None => places.push((format!("{TERRAIN}/{}", geom_name(model, g)), colour(1.0))),
         }
+        let q = model.geom_quat()[g];
         for (path, colour) in places {
-            rec.log_static(path.as_str(), &local)?;
-            log_shape(rec, &path, model, g, kind, colour)?;
+            ops.push(Op::Transform {
+                path: path.clone(),
+                translation: f32x3(model.geom_pos()[g]),
+                quaternion_wxyz: [q[0] as f32, q[1] as f32, q[2] as f32, q[3] as f32],
+                is_static: true,
+            });
+            ops.push(Op::Shape {
+                path,
+                shape: shape.clone(),
+                colour,
+            });
         }
     }
-    Ok(())
 }
 
-fn log_shape(
-    rec: &RecordingStream,
-    path: &str,
-    model: &MjModel,
-    g: usize,
-    kind: MjtGeomBase,
-    colour: rerun::Color,
-) -> rerun::RecordingStreamResult<()> {
+fn shape(model: &MjModel, g: usize, kind: MjtGeomBase) -> Option<Shape> {
     let size = model.geom_size()[g];
-    match kind {
-        MjtGeomBase::mjGEOM_SPHERE => rec.log_static(
-            path,
-            &rerun::Ellipsoids3D::from_radii([size[0] as f32])
-                .with_colors([colour])
-                .with_fill_mode(rerun::FillMode::Solid),
-        ),
-        MjtGeomBase::mjGEOM_ELLIPSOID => rec.log_static(
-            path,
-            &rerun::Ellipsoids3D::from_half_sizes([f32x3(size)])
-                .with_colors([colour])
-                .with_fill_mode(rerun::FillMode::Solid),
-        ),
-        // MuJoCo's capsule is centred on its frame along z; Rerun's starts at the origin.
-        MjtGeomBase::mjGEOM_CAPSULE => rec.log_static(
-            path,
-            &rerun::Capsules3D::from_lengths_and_radii([2.0 * size[1] as f32], [size[0] as f32])
-                .with_translations([[0.0, 0.0, -size[1] as f32]])
-                .with_colors([colour])
-                .with_fill_mode(rerun::FillMode::Solid),
-        ),
-        MjtGeomBase::mjGEOM_CYLINDER => rec.log_static(
-            path,
-            &rerun::Cylinders3D::from_lengths_and_radii([2.0 * size[1] as f32], [size[0] as f32])
-                .with_colors([colour])
-                .with_fill_mode(rerun::FillMode::Solid),
-        ),
-        MjtGeomBase::mjGEOM_BOX => rec.log_static(
-            path,
-            &rerun::Boxes3D::from_half_sizes([f32x3(size)])
-                .with_colors([colour])
-                .with_fill_mode(rerun::FillMode::Solid),
-        ),
-        MjtGeomBase::mjGEOM_HFIELD => {
-            let h = model.geom_dataid()[g] as usize;
-            rec.log_static(
-                path,
-                &height_field_mesh(model, h).with_albedo_factor(colour.0),
-            )
-        }
-        // Planes on a body and meshes do not occur in the generated models.
-        _ => Ok(()),
-    }
+    Some(match kind {
+        MjtGeomBase::mjGEOM_SPHERE => Shape::Sphere {
+            radius: size[0] as f32,
+        },
+        MjtGeomBase::mjGEOM_ELLIPSOID => Shape::Ellipsoid {
+            half_sizes: f32x3(size),
+        },
+        MjtGeomBase::mjGEOM_CAPSULE => Shape::Capsule {
+            length: 2.0 * size[1] as f32,
+            radius: size[0] as f32,
+            z_start: -size[1] as f32,
+        },
+        MjtGeomBase::mjGEOM_CYLINDER => Shape::Cylinder {
+            length: 2.0 * size[1] as f32,
+            radius: size[0] as f32,
+        },
+        MjtGeomBase::mjGEOM_BOX => Shape::Box {
+            half_sizes: f32x3(size),
+        },
+        MjtGeomBase::mjGEOM_HFIELD => height_field_mesh(model, model.geom_dataid()[g] as usize),
+        _ => return None,
+    })
 }
 
 /// A height field as a triangle mesh in its geom's frame: MuJoCo's elevation data in [0, 1]
 /// scaled by the top height, on a grid spanning ±size_x, ±size_y.
-fn height_field_mesh(model: &MjModel, h: usize) -> rerun::Mesh3D {
+fn height_field_mesh(model: &MjModel, h: usize) -> Shape {
     let [sx, sy, sz, _] = model.hfield_size()[h];
     let rows = model.hfield_nrow()[h] as usize;
     let cols = model.hfield_ncol()[h] as usize;
@@ -172,5 +148,8 @@ fn height_field_mesh(model: &MjModel, h: usize) -> rerun::Mesh3D {
             triangles.push([i, up + 1, up]);
         }
     }
-    rerun::Mesh3D::new(vertices).with_triangle_indices(triangles)
+    Shape::Mesh {
+        vertices,
+        triangles,
+    }
 }

@@ -1,7 +1,7 @@
 //! The observer on the closed loop: samples every step into the recorder's queue, never waits.
 
 use crate::frame::{Frame, Message, MpcReading, PushEvent, Touchdown};
-use crate::target::{viewer_url, RerunOptions, RerunTarget};
+use crate::target::RerunOptions;
 use crate::writer::{Writer, WriterReport};
 use crate::{RunView, VizError};
 use eemp_core::kinematics::LegKinematics;
@@ -15,8 +15,9 @@ use std::time::Duration;
 /// The path the trunk has covered before the CoT so far is plotted [m].
 pub const MIN_COT_PATH_M: f64 = 0.2;
 
-/// How long [`RerunSink::finish`] waits for the recorder to write out what is queued.
-const FINISH_TIMEOUT: Duration = Duration::from_secs(20);
+/// How long [`RerunSink::finish`] waits for the recorder to write out what is queued: longer
+/// than a backend's own limit (the Python bridge's 120 s), after which it is stopped.
+const FINISH_TIMEOUT: Duration = Duration::from_secs(150);
 
 /// What a recording holds and lost, for the run's summary.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -38,6 +39,8 @@ pub struct RerunReport {
 pub struct RerunSink {
     tx: Option<SyncSender<Message>>,
     done: Receiver<WriterReport>,
+    /// Stops a backend that does not finish in time (kills the Python bridge).
+    abort: Option<Box<dyn Fn() + Send>>,
     frame_period_s: f64,
     next_frame_s: f64,
     sent: LegMap<usize>,
@@ -68,24 +71,17 @@ impl RerunSink {
                 run.step_s
             )));
         }
-        let builder = rerun::RecordingStreamBuilder::new(crate::APPLICATION_ID)
-            .recording_name(run.name.clone())
-            .with_blueprint(crate::blueprint::default_layout(run));
-        let stream = match &options.target {
-            RerunTarget::File(path) => builder.save(path),
-            RerunTarget::Connect(address) => builder.connect_grpc_opts(viewer_url(address)?.0),
-            RerunTarget::Serve(port) => builder.serve_grpc_opts(
-                "0.0.0.0",
-                *port,
-                rerun::ServerOptions {
-                    memory_limit: rerun::MemoryLimit::from_fraction_of_total(0.25),
-                    ..Default::default()
-                },
-            ),
-        }
-        .map_err(|e| VizError::Target(format!("cannot open the Rerun recording: {e}")))?;
-        let flush_on_drop = matches!(options.target, RerunTarget::File(_));
-        let writer = Writer::new(stream, run, flush_on_drop)?;
+        let layout = crate::layout::default_layout(run);
+        let backend = crate::backend::open(
+            &options.recorder,
+            &crate::backend::Opening {
+                target: &options.target,
+                recording_name: &run.name,
+                layout: &layout,
+            },
+        )?;
+        let abort = backend.abort_handle();
+        let writer = Writer::new(backend, run)?;
         let (tx, rx) = mpsc::sync_channel(options.queue_frames);
         let (done_tx, done) = mpsc::channel();
         std::thread::Builder::new()
@@ -96,6 +92,7 @@ impl RerunSink {
         Ok(RerunSink {
             tx: Some(tx),
             done,
+            abort,
             frame_period_s: 1.0 / options.frame_hz,
             next_frame_s: f64::NEG_INFINITY,
             sent: LegMap::splat(0),
@@ -234,7 +231,12 @@ impl RerunSink {
         self.tx = None;
         let (log_errors, flushed) = match self.done.recv_timeout(FINISH_TIMEOUT) {
             Ok(r) => (r.log_errors, r.flushed),
-            Err(_) => (0, false),
+            Err(_) => {
+                if let Some(abort) = &self.abort {
+                    abort();
+                }
+                (0, false)
+            }
         };
         RerunReport {
             frames: self.frames,

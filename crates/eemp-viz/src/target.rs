@@ -32,17 +32,28 @@ pub struct RerunOptions {
     /// Frames (robot pose, plan geometry, forces, plotted values) per second of simulated
     /// time. Touchdowns and pushes are logged at the step they happen, whatever this is.
     pub frame_hz: f64,
-    /// Frames the control loop may have queued for the recorder; beyond it frames are dropped
-    /// and counted (the loop never waits for a slow or vanished viewer).
+    /// Messages the control loop may have queued for the recorder (16384 for a file, 4096 for a
+    /// stream); beyond it they are dropped and counted (the loop never waits for a slow or
+    /// vanished recorder or viewer).
     pub queue_frames: usize,
+    /// Which library writes the recording.
+    pub recorder: crate::Recorder,
 }
 
 impl RerunOptions {
     pub fn new(target: RerunTarget) -> Self {
+        // A file has no viewer to keep up with: a deeper queue lets the Python recorder (≈ 1
+        // ms a frame) finish a two-minute walk at 100 frames/s without dropping any (a frame is
+        // 1.5 KB, frame.rs's test: ≤ 25 MB). A stream keeps a short one, so a live view stays live.
+        let queue_frames = match target {
+            RerunTarget::File(_) => 16384,
+            _ => 4096,
+        };
         RerunOptions {
             target,
             frame_hz: 100.0,
-            queue_frames: 4096,
+            queue_frames,
+            recorder: crate::Recorder::default_for_build(),
         }
     }
 
@@ -97,14 +108,26 @@ fn check_writable(path: &Path) -> Result<(), VizError> {
             path.display()
         )));
     }
-    // Create it now (the recorder truncates it again): a missing folder or a read-only place
-    // is reported before the run, not after it.
-    std::fs::File::create(path).map(drop).map_err(|e| {
-        VizError::Target(format!(
-            "cannot write the recording {}: {e}",
-            path.display()
-        ))
-    })
+    // Open it for writing now, so that a missing folder or a read-only place is reported
+    // before the run, not after it; neither truncate it (an old recording stays until the
+    // recorder replaces it) nor leave a new empty one behind (the run may still be refused).
+    let existed = path.exists();
+    std::fs::OpenOptions::new()
+        .write(true)
+        .create(true)
+        .truncate(false)
+        .open(path)
+        .map(drop)
+        .map_err(|e| {
+            VizError::Target(format!(
+                "cannot write the recording {}: {e}",
+                path.display()
+            ))
+        })?;
+    if !existed {
+        let _ = std::fs::remove_file(path);
+    }
+    Ok(())
 }
 
 /// `HOST:PORT`, `HOST` or `rerun+http://HOST:PORT/proxy` → the viewer's gRPC URL and the

@@ -1,4 +1,5 @@
-//! A short walk recorded to an .rrd and read back with Rerun's own query engine.
+//! A short walk recorded to an .rrd by each recorder this build has, and read back with Rerun's
+//! own reader (rerun-sdk's `RrdReader`, tests/read_rrd.py).
 
 use eemp_core::kinematics::LegKinematics;
 use eemp_core::leg::{Leg, LegMap};
@@ -6,12 +7,12 @@ use eemp_core::planner::{Gait, PlannerConfig, PlannerParams, VelocityCommand};
 use eemp_core::robot::RobotConfig;
 use eemp_sim::closed_loop::{Push, StateSource};
 use eemp_sim::walk::{run_walk, WalkSpec};
-use eemp_viz::{RerunOptions, RerunSink, RerunTarget, RunView};
+use eemp_viz::{Recorder, RerunOptions, RerunSink, RerunTarget, RunView};
 use nalgebra::Vector3;
-use rerun::dataframe::{QueryEngine, QueryExpression};
-use rerun::external::arrow::array::{Array, AsArray};
-use rerun::external::arrow::datatypes::Float32Type;
-use std::path::Path;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::{Duration, Instant};
 
 fn spec(duration_s: f64) -> WalkSpec {
     let mut s = WalkSpec::constant(
@@ -47,61 +48,56 @@ fn view(spec: &WalkSpec) -> RunView {
     }
 }
 
-/// The recording's one data store (the blueprint is another store).
-fn engine(path: &Path) -> QueryEngine<rerun::dataframe::StorageEngine> {
-    let engines = QueryEngine::from_rrd_filepath(&Default::default(), path).unwrap();
-    engines
-        .into_iter()
-        .find(|(id, _)| id.kind() == rerun::StoreKind::Recording)
-        .map(|(_, e)| e)
-        .expect("a recording store")
+use eemp_viz::testing::python;
+
+/// The recorders this build has: Python's always, the Rust SDK's with the `sdk` feature.
+fn recorders(python: &Path) -> Vec<Recorder> {
+    let mut r = vec![Recorder::Python(python.to_path_buf())];
+    if cfg!(feature = "sdk") {
+        r.push(Recorder::Sdk);
+    }
+    r
 }
 
-/// Rows of `entity` on the simulation timeline, each row's values of the component whose
-/// name ends in `component`, flattened to f32.
-fn rows(
-    engine: &QueryEngine<rerun::dataframe::StorageEngine>,
-    entity: &str,
-    component: &str,
-) -> Vec<Vec<f32>> {
-    let query = QueryExpression {
-        view_contents: Some([(entity.into(), None)].into_iter().collect()),
-        filtered_index: Some("sim_time".into()),
-        ..Default::default()
-    };
-    let mut handle = engine.query(query);
-    let column = handle
-        .selected_contents()
-        .iter()
-        .position(|(_, c)| c.display_name().ends_with(component))
-        .unwrap_or_else(|| panic!("{entity} has no {component} column"));
-    let mut out = Vec::new();
-    while let Some(row) = handle.next_row() {
-        let cell = &row[column];
-        if cell.is_null(0) {
-            continue;
-        }
-        let list = cell.as_list::<i32>().value(0);
-        let values = match list.as_fixed_size_list_opt() {
-            Some(fixed) => fixed
-                .values()
-                .as_primitive::<Float32Type>()
-                .values()
-                .to_vec(),
-            None => list.as_primitive::<Float32Type>().values().to_vec(),
-        };
-        out.push(values);
+/// What Rerun's own reader finds in a recording (tests/read_rrd.py).
+struct ReadBack {
+    entities: Vec<String>,
+    rows: HashMap<String, Vec<Vec<f64>>>,
+    recording_name: Option<String>,
+}
+
+fn read_back(python: &Path, rrd: &Path, wanted: &[String]) -> ReadBack {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/read_rrd.py");
+    let o = Command::new(python)
+        .arg(script)
+        .arg(rrd)
+        .args(wanted)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    ReadBack {
+        entities: serde_json::from_value(v["entities"].clone()).unwrap(),
+        rows: serde_json::from_value(v["rows"].clone()).unwrap(),
+        recording_name: v["recording_name"].as_str().map(str::to_string),
     }
-    out
 }
 
 #[test]
 fn a_recorded_walk_reads_back_with_its_poses_plan_and_touchdowns() {
+    let Some(python) = python() else { return };
+    for recorder in recorders(&python) {
+        recorded_walk_reads_back(&python, recorder);
+    }
+}
+
+fn recorded_walk_reads_back(python: &Path, recorder: Recorder) {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("walk.rrd");
     let spec = spec(2.0);
     let mut options = RerunOptions::new(RerunTarget::File(path.clone()));
     options.frame_hz = 50.0;
+    options.recorder = recorder.clone();
     let mut sink = RerunSink::open(&options, &view(&spec)).unwrap();
     // What the recording must show, computed beside it from the same steps.
     let kin = LegKinematics::new(&RobotConfig::a1());
@@ -132,16 +128,38 @@ fn a_recorded_walk_reads_back_with_its_poses_plan_and_touchdowns() {
         run.metrics
     );
     let report = sink.finish();
-    assert!(report.flushed, "{report:?}");
-    assert_eq!((report.dropped, report.log_errors), (0, 0), "{report:?}");
+    assert!(report.flushed, "{recorder:?}: {report:?}");
+    assert_eq!(
+        (report.dropped, report.log_errors),
+        (0, 0),
+        "{recorder:?}: {report:?}"
+    );
     assert_eq!(report.frames, 100, "2 s at 50 Hz");
     assert_eq!(report.pushes, 1);
 
-    let engine = engine(&path);
-    let entities: Vec<String> = engine
-        .iter_entity_paths_sorted(&rerun::dataframe::EntityPathFilter::all())
-        .map(|e| e.to_string())
-        .collect();
+    let trunk = "/world/robot/trunk=Transform3D:translation".to_string();
+    let centres_key = "/world/plan/ellipse_centres=Points3D:positions".to_string();
+    let actual = |leg: Leg| {
+        format!(
+            "/world/touchdowns/actual/{}=Points3D:positions",
+            leg.short_name()
+        )
+    };
+    let rotation = "/world/robot/trunk=Transform3D:quaternion".to_string();
+    let colours = "/world/plan/ellipses=LineStrips3D:colors".to_string();
+    let mut wanted = vec![
+        trunk.clone(),
+        centres_key.clone(),
+        rotation.clone(),
+        colours.clone(),
+    ];
+    wanted.extend(Leg::ALL.map(actual));
+    let back = read_back(python, &path, &wanted);
+    assert_eq!(
+        back.recording_name.as_deref(),
+        Some("test walk"),
+        "{recorder:?}"
+    );
     for expected in [
         "/world/robot/trunk",
         "/world/robot/trunk/trunk_geom",
@@ -154,52 +172,168 @@ fn a_recorded_walk_reads_back_with_its_poses_plan_and_touchdowns() {
         "/plots/efficiency/cot",
     ] {
         assert!(
-            entities.iter().any(|e| e == expected),
-            "{expected} missing from {entities:?}"
+            back.entities.iter().any(|e| e == expected),
+            "{recorder:?}: {expected} missing from {:?}",
+            back.entities
         );
     }
     // One trunk pose per frame logged.
-    let trunk = rows(&engine, "/world/robot/trunk", "translation");
-    assert_eq!(trunk.len(), report.frames);
+    assert_eq!(back.rows[&trunk].len(), report.frames, "{recorder:?}");
+    // Rerun's quaternions are x, y, z, w: the trunk starts upright and facing +x (w ≈ 1).
+    let q0 = &back.rows[&rotation][0];
+    assert!(
+        q0[3].abs() > 0.99,
+        "{recorder:?}: trunk rotation {q0:?} (x, y, z, w)"
+    );
+    // Each ellipse is green (foot inside) or red (outside), as packed RGBA.
+    let packed = |c: [u8; 4]| u32::from_be_bytes(c) as f64;
+    for row in &back.rows[&colours] {
+        assert_eq!(row.len(), 4, "{recorder:?}: a colour per ellipse");
+        for c in row {
+            assert!(
+                *c == packed([60, 180, 90, 255]) || *c == packed([220, 60, 50, 255]),
+                "{recorder:?}: ellipse colour {c:#x}",
+                c = *c as u32
+            );
+        }
+    }
     // Every touchdown the walk counted, per leg.
     let mut total = 0;
     for leg in Leg::ALL {
-        let n = rows(
-            &engine,
-            &format!("/world/touchdowns/actual/{}", leg.short_name()),
-            "positions",
-        )
-        .len();
-        assert_eq!(n, touchdowns[leg], "{leg:?}");
+        let n = back.rows[&actual(leg)].len();
+        assert_eq!(n, touchdowns[leg], "{recorder:?}: {leg:?}");
         total += n;
     }
     assert_eq!(total, report.touchdowns);
     assert!(total >= 4, "the walk stepped");
     // Ellipse centres (eq. 5) sit under the hips: the nominal footholds of the true pose.
-    let logged = rows(&engine, "/world/plan/ellipse_centres", "positions");
-    assert_eq!(logged.len(), centres.len());
+    let logged = &back.rows[&centres_key];
+    assert_eq!(logged.len(), centres.len(), "{recorder:?}");
     for (row, expected) in logged.iter().zip(&centres) {
         for leg in Leg::ALL {
             let i = leg.index() * 3;
             let e = expected[leg];
-            assert!((row[i] as f64 - e.x).abs() < 1e-4 && (row[i + 1] as f64 - e.y).abs() < 1e-4);
+            assert!(
+                (row[i] - e.x).abs() < 1e-4 && (row[i + 1] - e.y).abs() < 1e-4,
+                "{recorder:?}: {leg:?} centre {row:?} against {e:?}"
+            );
         }
     }
 }
 
 #[test]
 fn a_viewer_that_never_answers_costs_dropped_frames_not_a_hang() {
+    let Some(python) = python() else { return };
+    for recorder in recorders(&python) {
+        viewer_never_answers(recorder);
+    }
+}
+
+fn viewer_never_answers(recorder: Recorder) {
+    let recorder_name = format!("{recorder:?}");
     // A socket that accepts connections and never speaks gRPC.
     let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
     let address = listener.local_addr().unwrap().to_string();
     let spec = spec(2.0);
     let mut options = RerunOptions::new(RerunTarget::Connect(address));
     options.queue_frames = 8;
+    options.recorder = recorder;
     let mut sink = RerunSink::open(&options, &view(&spec)).unwrap();
     let run = run_walk(&RobotConfig::a1(), &spec, |r| sink.observe(r)).unwrap();
     assert!(run.metrics.distance_m > 0.2, "{:?}", run.metrics);
+    let t0 = Instant::now();
     let report = sink.finish();
+    // The recorder gives up on the viewer in its own time (the Python bridge's stream flush
+    // 5 s, the SDK's 5 s), well before the sink's last-resort limit.
+    assert!(
+        t0.elapsed() < Duration::from_secs(30),
+        "{recorder_name}: finish took {:?}",
+        t0.elapsed()
+    );
     // Every frame was queued or counted as dropped; the run never waited for the viewer.
     assert!(report.frames + report.dropped >= 200, "{report:?}");
     drop(listener);
+}
+
+#[test]
+fn a_live_stream_reaches_a_running_rerun_server() {
+    let Some(python) = python() else { return };
+    for recorder in recorders(&python) {
+        live_stream_reaches_a_server(&python, recorder);
+    }
+}
+
+/// A child process killed when the test ends, whatever happens in between.
+struct KillOnDrop(std::process::Child);
+
+impl Drop for KillOnDrop {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// A real Rerun server (`rerun --port P --save FILE`: the pinned CLI from rerun-sdk, run
+/// directly, as a viewer without a window) receives a walk streamed with `--rerun-connect`.
+fn live_stream_reaches_a_server(python: &Path, recorder: Recorder) {
+    let dir = tempfile::tempdir().unwrap();
+    let saved = dir.path().join("received.rrd");
+    let cli = Command::new(python)
+        .args([
+            "-c",
+            "import os, rerun_cli; print(os.path.join(os.path.dirname(rerun_cli.__file__), 'rerun'))",
+        ])
+        .output()
+        .unwrap();
+    let cli = PathBuf::from(String::from_utf8(cli.stdout).unwrap().trim());
+    assert!(cli.exists(), "rerun-sdk's CLI {}", cli.display());
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let mut server = KillOnDrop(
+        Command::new(&cli)
+            .args(["--port", &port.to_string(), "--save"])
+            .arg(&saved)
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap(),
+    );
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while std::net::TcpStream::connect(("127.0.0.1", port)).is_err() {
+        assert!(
+            Instant::now() < deadline,
+            "the Rerun server did not listen on {port}"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let spec = spec(2.0);
+    let mut options = RerunOptions::new(RerunTarget::Connect(format!("127.0.0.1:{port}")));
+    options.frame_hz = 50.0;
+    options.recorder = recorder.clone();
+    let mut sink = RerunSink::open(&options, &view(&spec)).unwrap();
+    run_walk(&RobotConfig::a1(), &spec, |r| sink.observe(r)).unwrap();
+    let report = sink.finish();
+    assert!(report.flushed, "{recorder:?}: {report:?}");
+    assert_eq!(
+        (report.dropped, report.log_errors),
+        (0, 0),
+        "{recorder:?}: {report:?}"
+    );
+    // Stop the server as Ctrl-C would (it writes out what it received); one that still waits
+    // for a client to hang up after 10 s is killed: its file holds what arrived either way.
+    let _ = Command::new("kill")
+        .args(["-INT", &server.0.id().to_string()])
+        .status();
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while server.0.try_wait().unwrap().is_none() && Instant::now() < deadline {
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    drop(server);
+    let trunk = "/world/robot/trunk=Transform3D:translation".to_string();
+    let back = read_back(python, &saved, std::slice::from_ref(&trunk));
+    assert_eq!(back.rows[&trunk].len(), report.frames, "{recorder:?}");
+    assert!(back.entities.iter().any(|e| e == "/world/plan/ellipses"));
 }

@@ -1,0 +1,104 @@
+//! The layout a recording opens with (the 3-D scene beside the time series) and the plotted
+//! series' names and colours, so that legends read in words and units.
+
+use crate::ops::{rgb, Layout, Op, Ops, Rgba, SeriesView};
+use crate::RunView;
+
+pub fn default_layout(run: &RunView) -> Layout {
+    let view = |name: &str, origin: &str| SeriesView {
+        name: name.into(),
+        origin: origin.into(),
+    };
+    Layout {
+        scene_name: format!("{} — robot and plan", run.name),
+        scene_origin: "/world".into(),
+        rows: vec![
+            vec![view(
+                "velocity: commanded vs actual (m/s, rad/s)",
+                "/plots/velocity",
+            )],
+            vec![view(
+                "CoT so far (eq. 8, plotted after 0.2 m)",
+                "/plots/efficiency/cot",
+            )],
+            vec![view(
+                "manipulability so far (eq. 9)",
+                "/plots/efficiency/manipulability",
+            )],
+            vec![
+                view("joint torques (N·m)", "/plots/torque"),
+                view(
+                    "eq. (5) ellipse value per foot (> 1: outside)",
+                    "/plots/ellipse",
+                ),
+                view("touchdown − eq. (6) target (m)", "/plots/touchdown_error_m"),
+                view("MPC solve time (ms) and friction μ", "/plots/mpc"),
+                view("loaded feet (1 = carrying)", "/plots/contact"),
+            ],
+        ],
+        row_shares: vec![0.3, 0.15, 0.15, 0.4],
+        column_shares: [0.6, 0.4],
+        timeline: crate::writer::TIMELINE.into(),
+    }
+}
+
+/// Static names and colours of the plotted series.
+pub fn series_styles(ops: &mut Ops, estimated: bool) {
+    let mut style = |path: &str, name: &str, colour: Rgba| {
+        ops.push(Op::SeriesStyle {
+            path: path.into(),
+            name: name.into(),
+            colour,
+        })
+    };
+    let (cmd, act) = (rgb(150, 150, 150), rgb(30, 100, 220));
+    style("plots/velocity/vx/commanded", "vx commanded (m/s)", cmd);
+    style("plots/velocity/vx/actual", "vx actual (m/s)", act);
+    style(
+        "plots/velocity/vy/commanded",
+        "vy commanded (m/s)",
+        rgb(190, 160, 120),
+    );
+    style(
+        "plots/velocity/vy/actual",
+        "vy actual (m/s)",
+        rgb(230, 120, 30),
+    );
+    style(
+        "plots/velocity/yaw_rate/commanded",
+        "yaw rate commanded (rad/s)",
+        rgb(160, 190, 160),
+    );
+    style(
+        "plots/velocity/yaw_rate/actual",
+        "yaw rate actual (rad/s)",
+        rgb(40, 160, 60),
+    );
+    if estimated {
+        style(
+            "plots/velocity/vx/estimated",
+            "vx estimated by the filter (m/s)",
+            rgb(120, 60, 200),
+        );
+    }
+    style(
+        "plots/efficiency/cot",
+        "CoT so far (eq. 8, −)",
+        rgb(200, 40, 40),
+    );
+    style(
+        "plots/efficiency/manipulability",
+        "manipulability so far (eq. 9)",
+        rgb(40, 40, 200),
+    );
+    style(
+        "plots/mpc/solve_time_ms",
+        "MPC solve time (ms)",
+        rgb(100, 100, 100),
+    );
+    style(
+        "plots/mpc/friction_mu",
+        "MPC friction μ (slip-adapted)",
+        rgb(0, 150, 150),
+    );
+}
