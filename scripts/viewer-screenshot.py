@@ -1,14 +1,15 @@
 """A screenshot of the Rerun viewer on a walk, without a display (docs/img/viewer.png).
 
 Needs the viewer (`pip install rerun-sdk==0.36.3`), a Vulkan software rasteriser
-(Debian: `apt-get install mesa-vulkan-drivers`) and an `eemp` built with the recorder
-(`make viewer`). The headless viewer listens on gRPC; the walk streams into it with
+(Debian: `apt-get install mesa-vulkan-drivers`) and an `eemp` (any build: it records through
+this Python's rerun-sdk, or through the Rust SDK in a `make viewer` build). The headless viewer listens on gRPC; the walk streams into it with
 `--rerun-connect`, as a live view would, and the viewer saves what it shows at the end.
 
     python scripts/viewer-screenshot.py [--eemp target/release/eemp] [--out docs/img/viewer.png]
 """
 
 import argparse
+import os
 import subprocess
 import sys
 import tempfile
@@ -29,7 +30,8 @@ def main() -> int:
         with tempfile.TemporaryDirectory() as d:
             cmd = [a.eemp, "walk", *a.walk, "--rerun-connect", viewer.url, "--out", d]
             print(" ".join(cmd))
-            subprocess.run(cmd, check=True)
+            env = {**os.environ, "EEMP_PYTHON": sys.executable}
+            subprocess.run(cmd, check=True, env=env)
         time.sleep(a.settle_s)
         viewer.save_screenshot(a.out)
         print("wrote", a.out)
