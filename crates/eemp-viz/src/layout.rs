@@ -42,63 +42,78 @@ pub fn default_layout(run: &RunView) -> Layout {
     }
 }
 
-/// Static names and colours of the plotted series.
-pub fn series_styles(ops: &mut Ops, estimated: bool) {
-    let mut style = |path: &str, name: &str, colour: Rgba| {
-        ops.push(Op::SeriesStyle {
-            path: path.into(),
-            name: name.into(),
-            colour,
-        })
-    };
-    let (cmd, act) = (rgb(150, 150, 150), rgb(30, 100, 220));
-    style("plots/velocity/vx/commanded", "vx commanded (m/s)", cmd);
-    style("plots/velocity/vx/actual", "vx actual (m/s)", act);
-    style(
+/// The plotted series' legend names (with units) and colours.
+const SERIES: [(&str, &str, Rgba); 11] = [
+    (
+        "plots/velocity/vx/commanded",
+        "vx commanded (m/s)",
+        rgb(150, 150, 150),
+    ),
+    (
+        "plots/velocity/vx/actual",
+        "vx actual (m/s)",
+        rgb(30, 100, 220),
+    ),
+    (
         "plots/velocity/vy/commanded",
         "vy commanded (m/s)",
         rgb(190, 160, 120),
-    );
-    style(
+    ),
+    (
         "plots/velocity/vy/actual",
         "vy actual (m/s)",
         rgb(230, 120, 30),
-    );
-    style(
+    ),
+    (
         "plots/velocity/yaw_rate/commanded",
         "yaw rate commanded (rad/s)",
         rgb(160, 190, 160),
-    );
-    style(
+    ),
+    (
         "plots/velocity/yaw_rate/actual",
         "yaw rate actual (rad/s)",
         rgb(40, 160, 60),
-    );
-    if estimated {
-        style(
-            "plots/velocity/vx/estimated",
-            "vx estimated by the filter (m/s)",
-            rgb(120, 60, 200),
-        );
-    }
-    style(
+    ),
+    (
         "plots/efficiency/cot",
         "CoT so far (eq. 8, −)",
         rgb(200, 40, 40),
-    );
-    style(
+    ),
+    (
         "plots/efficiency/manipulability",
         "manipulability so far (eq. 9)",
         rgb(40, 40, 200),
-    );
-    style(
+    ),
+    (
         "plots/mpc/solve_time_ms",
         "MPC solve time (ms)",
         rgb(100, 100, 100),
-    );
-    style(
+    ),
+    (
         "plots/mpc/friction_mu",
         "MPC friction μ (slip-adapted)",
         rgb(0, 150, 150),
-    );
+    ),
+    // Only on runs with a state estimate.
+    (
+        "plots/velocity/vx/estimated",
+        "vx estimated by the filter (m/s)",
+        rgb(120, 60, 200),
+    ),
+];
+
+/// Static names and colours of the plotted series.
+pub fn series_styles(ops: &mut Ops, estimated: bool) {
+    let shown = if estimated {
+        SERIES.len()
+    } else {
+        SERIES.len() - 1
+    };
+    for (path, name, colour) in &SERIES[..shown] {
+        ops.push(Op::SeriesStyle {
+            path: path.to_string(),
+            name: name.to_string(),
+            colour: *colour,
+        });
+    }
 }

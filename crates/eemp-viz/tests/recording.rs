@@ -7,7 +7,7 @@ use eemp_core::planner::{Gait, PlannerConfig, PlannerParams, VelocityCommand};
 use eemp_core::robot::RobotConfig;
 use eemp_sim::closed_loop::{Push, StateSource};
 use eemp_sim::walk::{run_walk, WalkSpec};
-use eemp_viz::{Recorder, RerunOptions, RerunSink, RerunTarget, RunView};
+use eemp_viz::{Recorder, RerunOptions, RerunReport, RerunSink, RerunTarget, RunView};
 use nalgebra::Vector3;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -49,6 +49,16 @@ fn view(spec: &WalkSpec) -> RunView {
 }
 
 use eemp_viz::testing::python;
+
+/// Everything queued was logged and written out.
+fn assert_complete(report: &RerunReport, recorder: &Recorder) {
+    assert!(report.flushed, "{recorder:?}: {report:?}");
+    assert_eq!(
+        (report.dropped, report.log_errors),
+        (0, 0),
+        "{recorder:?}: {report:?}"
+    );
+}
 
 /// The recorders this build has: Python's always, the Rust SDK's with the `sdk` feature.
 fn recorders(python: &Path) -> Vec<Recorder> {
@@ -135,12 +145,7 @@ fn recorded_walk_reads_back(python: &Path, recorder: Recorder) {
         run.metrics
     );
     let report = sink.finish();
-    assert!(report.flushed, "{recorder:?}: {report:?}");
-    assert_eq!(
-        (report.dropped, report.log_errors),
-        (0, 0),
-        "{recorder:?}: {report:?}"
-    );
+    assert_complete(&report, &recorder);
     assert_eq!(report.frames, 100, "2 s at 50 Hz");
     assert_eq!(report.pushes, 1);
 
@@ -323,12 +328,7 @@ fn live_stream_reaches_a_server(python: &Path, recorder: Recorder) {
     let mut sink = RerunSink::open(&options, &view(&spec)).unwrap();
     run_walk(&RobotConfig::a1(), &spec, |r| sink.observe(r)).unwrap();
     let report = sink.finish();
-    assert!(report.flushed, "{recorder:?}: {report:?}");
-    assert_eq!(
-        (report.dropped, report.log_errors),
-        (0, 0),
-        "{recorder:?}: {report:?}"
-    );
+    assert_complete(&report, &recorder);
     // The server writes what it receives as it comes: wait until its file holds every frame
     // sent (a loaded machine may take a while), then stop it.
     let trunk = "/world/robot/trunk=Transform3D:translation".to_string();
