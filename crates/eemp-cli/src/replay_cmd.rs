@@ -342,8 +342,17 @@ fn resimulate(args: &ReplayArgs, trace: &std::path::Path) -> Result<Result<(), S
         std::fs::read(trace).map_err(|e| format!("cannot read {}: {e}", trace.display()))?;
     let exe = std::env::current_exe().map_err(|e| format!("cannot find eemp itself: {e}"))?;
     let tmp = std::env::temp_dir().join(format!("eemp-replay-{}", std::process::id()));
+    // The walk runs again in its own folder: a relative $EEMP_PYTHON means this folder's.
+    let python_env = std::env::var_os(eemp_viz::backend::PYTHON_ENV)
+        .map(PathBuf::from)
+        .filter(|p| p.components().count() > 1)
+        .and_then(|p| std::path::absolute(p).ok());
     let walk = |out: &std::path::Path, extra: &[String]| -> Result<bool, String> {
-        let status = std::process::Command::new(&exe)
+        let mut c = std::process::Command::new(&exe);
+        if let Some(py) = &python_env {
+            c.env(eemp_viz::backend::PYTHON_ENV, py);
+        }
+        let status = c
             .args(without_outputs(&command))
             .arg("--out")
             .arg(out)

@@ -1,15 +1,15 @@
 """Writes an EEMP run's Rerun recording with Python's rerun-sdk.
 
-`eemp` runs this (embedded in the binary, `python -u -c ...`) when it records without Rerun's
-Rust SDK, and feeds it on stdin: a header line (target, layout), then one JSON array of log
+`eemp` runs this (embedded in the binary, `python -u -X utf8 -c ...`) when it records without
+Rerun's Rust SDK, and feeds it on stdin: a header line (target, layout), then one JSON array of log
 operations per line (crates/eemp-viz/src/ops.rs says what each means). It answers on stdout:
 `ready` once the target is open, or `error: ...`, and `done <failed log calls> <1 if written
 out, else 0>` at the end.
 
 The geometry is computed on the Rust side; this only turns each operation into a log call.
-Poses and time series, most of the calls, are batched into columns (`send_columns`) and sent
-every FLUSH_S of wall time (checked as messages arrive, which at a live run's pace is every
-control step or so).
+Everything on the timeline (poses, series, points, polylines, arrows) is batched into columns
+per entity (`send_columns`) and sent every FLUSH_S of wall time or FLUSH_ROWS rows (checked as
+messages arrive, which at a live run's pace is every frame).
 """
 
 import sys
@@ -96,16 +96,22 @@ class Columns:
         return self.rows >= FLUSH_ROWS or time.monotonic() - self.last >= FLUSH_S
 
     def flush(self, count):
-        """Sends every buffered column; a path that fails is counted and the rest still sent."""
+        """Sends every buffered column; a path that fails (building or sending its columns) is
+        counted and the rest still sent. The buffers are emptied first, so that a bad path is
+        never sent again."""
         rr = self.rr
-        sends = [
-            (path, times, rr.Scalars.columns(scalars=values))
-            for path, (times, values) in self.scalars.items()
-        ] + [
-            (path, times, rr.Transform3D.columns(translation=ts, quaternion=qs))
-            for path, (times, ts, qs) in self.transforms.items()
-        ]
-        for path, (archetype, times, columns) in self.geometry.items():
+        scalars, transforms, geometry = self.scalars, self.transforms, self.geometry
+        self.scalars, self.transforms, self.geometry = {}, {}, {}
+        self.rows = 0
+        self.last = time.monotonic()
+
+        def scalar_columns(values):
+            return rr.Scalars.columns(scalars=values)
+
+        def transform_columns(ts, qs):
+            return rr.Transform3D.columns(translation=ts, quaternion=qs)
+
+        def shape_columns(archetype, columns):
             parts = []
             for name, (chunks, lengths) in columns.items():
                 if isinstance(chunks[0], np.ndarray):
@@ -113,16 +119,15 @@ class Columns:
                 else:
                     values = [v for chunk in chunks for v in chunk]
                 parts.extend(archetype.columns(**{name: values}).partition(lengths))
-            sends.append((path, times, parts))
-        self.scalars.clear()
-        self.transforms.clear()
-        self.geometry.clear()
-        self.rows = 0
-        self.last = time.monotonic()
-        for path, times, columns in sends:
+            return parts
+
+        sends = [(p, t, scalar_columns, (v,)) for p, (t, v) in scalars.items()]
+        sends += [(p, t, transform_columns, (ts, qs)) for p, (t, ts, qs) in transforms.items()]
+        sends += [(p, t, shape_columns, (a, c)) for p, (a, t, c) in geometry.items()]
+        for path, times, build, args in sends:
             try:
                 self.rec.send_columns(
-                    path, indexes=[rr.TimeColumn(self.timeline, duration=times)], columns=columns
+                    path, indexes=[rr.TimeColumn(self.timeline, duration=times)], columns=build(*args)
                 )
             except Exception as e:  # noqa: BLE001 -- counted, the rest is still sent
                 count(f"columns of {path}", e)
@@ -244,17 +249,19 @@ def open_recording(header):
     target = header["target"]
     try:
         if "file" in target:
-            rec.save(target["file"], default_blueprint=bp)
+            rec.save(target["file"])
         elif "connect" in target:
-            rec.connect_grpc(target["connect"], default_blueprint=bp)
+            rec.connect_grpc(target["connect"])
         else:
-            rec.serve_grpc(grpc_port=target["serve"], default_blueprint=bp, server_memory_limit="25%")
+            rec.serve_grpc(grpc_port=target["serve"], server_memory_limit="25%")
         # Active as well as default, as the Rust SDK's with_blueprint: a viewer that already
         # has an eemp layout shows this one.
         rec.send_blueprint(bp, make_active=True, make_default=True)
         rec.send_recording_name(header["recording_name"])
         rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
     except Exception as e:  # noqa: BLE001 -- any failure to open is reported to eemp
+        if "file" in target and os.path.exists(target["file"]):
+            os.remove(target["file"])  # a recording that never started: leave nothing
         reply(f"error: cannot open the Rerun recording: {e}")
         return None
     return rr, rec
