@@ -84,12 +84,11 @@ class Columns:
         values.append(value)
         self.rows += 1
 
-    def transform(self, t, path, translation, quaternion_wxyz):
+    def transform(self, t, path, translation, quaternion_xyzw):
         times, ts, qs = self.transforms.setdefault(path, ([], [], []))
-        w, x, y, z = quaternion_wxyz
         times.append(t)
         ts.append(translation)
-        qs.append([x, y, z, w])
+        qs.append(quaternion_xyzw)
         self.rows += 1
 
     def due(self):
@@ -174,15 +173,16 @@ def log_op(rr, rec, columns, now, op):
     if kind == "scalar":
         columns.scalar(now, op["path"], op["value"])
     elif kind == "transform":
+        # eemp (as MuJoCo) writes w, x, y, z; Rerun takes x, y, z, w.
+        w, x, y, z = op["quaternion_wxyz"]
         if op["static"]:
-            w, x, y, z = op["quaternion_wxyz"]
             rec.log(
                 op["path"],
                 rr.Transform3D(translation=op["translation"], quaternion=[x, y, z, w]),
                 static=True,
             )
         else:
-            columns.transform(now, op["path"], op["translation"], op["quaternion_wxyz"])
+            columns.transform(now, op["path"], op["translation"], [x, y, z, w])
     elif kind == "points":
         columns.shapes(
             now,

@@ -42,6 +42,9 @@ pub fn default_layout(run: &RunView) -> Layout {
     }
 }
 
+/// The filter's estimate of vx, plotted only on runs with a state estimate.
+pub(crate) const ESTIMATED_VX: &str = "plots/velocity/vx/estimated";
+
 /// The plotted series' legend names (with units) and colours.
 const SERIES: [(&str, &str, Rgba); 11] = [
     (
@@ -53,6 +56,11 @@ const SERIES: [(&str, &str, Rgba); 11] = [
         "plots/velocity/vx/actual",
         "vx actual (m/s)",
         rgb(30, 100, 220),
+    ),
+    (
+        ESTIMATED_VX,
+        "vx estimated by the filter (m/s)",
+        rgb(120, 60, 200),
     ),
     (
         "plots/velocity/vy/commanded",
@@ -94,26 +102,18 @@ const SERIES: [(&str, &str, Rgba); 11] = [
         "MPC friction μ (slip-adapted)",
         rgb(0, 150, 150),
     ),
-    // Only on runs with a state estimate.
-    (
-        "plots/velocity/vx/estimated",
-        "vx estimated by the filter (m/s)",
-        rgb(120, 60, 200),
-    ),
 ];
 
 /// Static names and colours of the plotted series.
 pub fn series_styles(ops: &mut Ops, estimated: bool) {
-    let shown = if estimated {
-        SERIES.len()
-    } else {
-        SERIES.len() - 1
-    };
-    for (path, name, colour) in &SERIES[..shown] {
+    for (path, name, colour) in SERIES {
+        if path == ESTIMATED_VX && !estimated {
+            continue;
+        }
         ops.push(Op::SeriesStyle {
             path: path.to_string(),
             name: name.to_string(),
-            colour: *colour,
+            colour,
         });
     }
 }

@@ -246,7 +246,7 @@ fn plots(ops: &mut Ops, f: &Frame) {
     ops.scalar("plots/velocity/yaw_rate/commanded", c.yaw_rate_rps);
     ops.scalar("plots/velocity/yaw_rate/actual", f.truth.body.omega_world.z);
     if let Some(est) = &f.estimate {
-        ops.scalar("plots/velocity/vx/estimated", est.body.v_heading().x);
+        ops.scalar(crate::layout::ESTIMATED_VX, est.body.v_heading().x);
     }
     if let Some(cot) = f.cot_so_far {
         ops.scalar("plots/efficiency/cot", cot);
