@@ -16,9 +16,14 @@ pub struct MpcArgs {
     #[arg(long)]
     pub adapt_friction: bool,
     /// With slip handling: the friction coefficient it starts from, raised by stance feet that
-    /// hold (`slip.initial_friction`; default: the MPC's).
+    /// hold (`slip.initial_friction`; default: the robot file's `control.slip_initial_friction`,
+    /// else 0.3; the MPC's coefficient or above: no cautious start).
     #[arg(long)]
     pub initial_friction: Option<f64>,
+    /// With slip handling: after a slip, feet that hold raise the coefficient to at most this
+    /// factor × the coefficient at that slip (`slip.hold_cap_after_slip`; default 0.95; 0: no cap).
+    #[arg(long)]
+    pub hold_cap_after_slip: Option<f64>,
     /// The placement ellipses stay within the friction cone seen from the hip: r ≤ factor · μ̂
     /// · X_z, μ̂ the slip detector's coefficient (`planner.ellipse_friction_factor`; 0: off).
     #[arg(long, default_value_t = eemp_core::planner::PlannerConfig::default().ellipse_friction_factor)]

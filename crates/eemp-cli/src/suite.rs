@@ -44,9 +44,14 @@ pub struct MethodConfig {
     /// EEMP: slip handling (`eemp_core::slip`); absent: its default (on).
     #[serde(default)]
     pub adapt_friction: Option<bool>,
-    /// EEMP with slip handling: the friction coefficient it starts from (absent: the MPC's).
+    /// EEMP with slip handling: the friction coefficient it starts from (absent: the robot
+    /// file's, else `slip::CAUTIOUS_START`).
     #[serde(default)]
     pub initial_friction: Option<f64>,
+    /// EEMP with slip handling: the cap on raises after a slip (`slip.hold_cap_after_slip`;
+    /// absent: its default; 0: off).
+    #[serde(default)]
+    pub hold_cap_after_slip: Option<f64>,
     /// EEMP: the ellipses' cap by the slip detector's coefficient
     /// (`planner.ellipse_friction_factor`; absent: its default 1; 0: off).
     #[serde(default)]
@@ -117,6 +122,7 @@ impl MethodConfig {
                 }));
             d.adapt_friction = self.adapt_friction;
             d.initial_friction = self.initial_friction;
+            d.hold_cap_after_slip = self.hold_cap_after_slip;
             d.mpc_horizon = self.mpc_horizon;
             if let Some(f) = self.ellipse_friction_factor {
                 d.ellipse_friction_factor = f;
@@ -403,6 +409,7 @@ impl SuiteConfig {
                     for (set, key) in [
                         (m.adapt_friction.is_some(), "adapt_friction"),
                         (m.initial_friction.is_some(), "initial_friction"),
+                        (m.hold_cap_after_slip.is_some(), "hold_cap_after_slip"),
                         (
                             m.ellipse_friction_factor.is_some(),
                             "ellipse_friction_factor",

@@ -116,6 +116,7 @@ impl WalkArgs {
             mpc_period_s: self.mpc.mpc_period,
             adapt_friction: self.mpc.adapt_friction(),
             initial_friction: self.mpc.initial_friction,
+            hold_cap_after_slip: self.mpc.hold_cap_after_slip,
             free_pair_tolerance: self.free.free_pair_tolerance,
             free_support_margin_m: self.free.free_support_margin,
             free_support_check: None,

@@ -46,7 +46,7 @@ fn bad_walk_and_stand_input_exits_2_names_the_value_and_writes_nothing() {
         malformed.to_str().unwrap(),
     );
     // (arguments, what the message must contain)
-    let cases: [(&[&str], &[&str]); 9] = [
+    let cases: [(&[&str], &[&str]); 10] = [
         (
             &["walk", "--gait", "gallop"],
             &["gallop", "trot, walk, free"],
@@ -73,6 +73,10 @@ fn bad_walk_and_stand_input_exits_2_names_the_value_and_writes_nothing() {
         (
             &["stand", "--duration", "-3"],
             &["--duration -3", "(0, 3600]"],
+        ),
+        (
+            &["walk", "--hold-cap-after-slip", "1.5"],
+            &["slip.hold_cap_after_slip", "1.5", "[0, 1]"],
         ),
     ];
     for (args, needles) in cases {

@@ -128,7 +128,12 @@ impl LocomotionController {
     /// The robot's `[control]` defaults fill what `config` leaves open.
     pub fn new(robot: &RobotConfig, mut config: ControllerConfig) -> Result<Self, ConfigError> {
         if config.slip.initial_friction.is_none() {
-            config.slip.initial_friction = robot.control.slip_initial_friction;
+            config.slip.initial_friction = Some(
+                robot
+                    .control
+                    .slip_initial_friction
+                    .unwrap_or(crate::slip::CAUTIOUS_START),
+            );
         }
         config.validate()?;
         let body = robot.composite_body(&robot.standing_pose());
@@ -314,7 +319,10 @@ mod tests {
                 .slip
                 .initial_friction
         };
-        assert_eq!(start(&robot, ControllerConfig::default()), None);
+        assert_eq!(
+            start(&robot, ControllerConfig::default()),
+            Some(crate::slip::CAUTIOUS_START)
+        );
         robot.control.slip_initial_friction = Some(0.25);
         assert_eq!(start(&robot, ControllerConfig::default()), Some(0.25));
         // The run's own start wins.

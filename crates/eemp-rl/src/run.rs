@@ -197,6 +197,8 @@ pub struct WalkDescription {
     pub adapt_friction: Option<bool>,
     /// With slip handling: the coefficient it starts from (`slip.initial_friction`).
     pub initial_friction: Option<f64>,
+    /// With slip handling: the cap on raises after a slip (`slip.hold_cap_after_slip`; 0: off).
+    pub hold_cap_after_slip: Option<f64>,
     pub free_pair_tolerance: Option<f64>,
     pub free_support_margin_m: Option<f64>,
     /// Whether the free gait's support rule applies (`FreePairing::support_check`).
@@ -237,6 +239,7 @@ impl Default for WalkDescription {
             mpc_period_s: eemp_core::controller::ControllerConfig::default().mpc_period_s,
             adapt_friction: None,
             initial_friction: None,
+            hold_cap_after_slip: None,
             free_pair_tolerance: None,
             free_support_margin_m: None,
             free_support_check: None,
@@ -303,9 +306,14 @@ impl WalkDescription {
                 self.controller
             ));
         }
-        if (self.adapt_friction.is_some() || self.initial_friction.is_some()) && !is_eemp {
+        if (self.adapt_friction.is_some()
+            || self.initial_friction.is_some()
+            || self.hold_cap_after_slip.is_some())
+            && !is_eemp
+        {
             return Err(format!(
-                "--no-adapt-friction, --adapt-friction and --initial-friction are for \
+                "--no-adapt-friction, --adapt-friction, --initial-friction and \
+                 --hold-cap-after-slip are for \
                  --controller eemp, not {} (a policy runs with the controller it was trained \
                  with)",
                 self.controller
@@ -423,6 +431,9 @@ impl WalkDescription {
         }
         if let Some(mu) = self.initial_friction {
             spec.controller.slip.initial_friction = Some(mu);
+        }
+        if let Some(cap) = self.hold_cap_after_slip {
+            spec.controller.slip.hold_cap_after_slip = cap;
         }
         spec.seed = self.sensing.seed;
         spec.state_source = self.sensing.source(&robot)?;
