@@ -175,8 +175,12 @@ fn table_walk_spec(cfg: &EempRlConfig, speed: f64, duration_s: f64, seed: u64) -
     );
     spec.params_table = Some(table);
     spec.seed = seed;
-    // EEMP-RL's controller, slip handling as its config says (off: the free gait's default
-    // is on).
+    // EEMP-RL's controller, slip handling as its config says (the shipped config: on, as the
+    // free gait's default).
+    assert!(
+        cfg.adapt_friction,
+        "the shipped policy runs with slip handling"
+    );
     spec.controller.slip.adapt_friction = cfg.adapt_friction;
     spec
 }
@@ -434,4 +438,36 @@ fn cmaes_needs_the_residual_on_a_nearest_table_and_a_resumed_run_replays_to_the_
             .count(),
         gens + 1
     );
+}
+
+#[test]
+fn nominal_worlds_are_the_robot_files_and_leave_the_other_worlds_as_they_were() {
+    use eemp_rl::tasks::eemp_rl::{TrainWorld, TrainWorlds};
+    let base = TrainWorlds::default();
+    let half = TrainWorlds {
+        nominal_share: 0.5,
+        ..TrainWorlds::default()
+    };
+    let mut nominal = 0;
+    for i in 0..64 {
+        let (a, b) = (base.draw(7, i), half.draw(7, i));
+        assert!(a.pushes && a.floor_friction.is_some());
+        if b == TrainWorld::nominal() {
+            nominal += 1;
+            assert!(b.terrain.rough.is_none() && b.terrain.friction_patch.is_empty());
+            assert_eq!(
+                (b.floor_friction, b.payload_kg, b.pushes),
+                (None, 0.0, false)
+            );
+        } else {
+            assert_eq!(a, b, "world {i}");
+        }
+    }
+    assert!((20..=44).contains(&nominal), "{nominal} of 64 nominal");
+    let bad = TrainWorlds {
+        nominal_share: 1.5,
+        ..TrainWorlds::default()
+    };
+    let err = bad.validate().unwrap_err().to_string();
+    assert!(err.contains("eemp_rl.worlds.nominal_share"), "{err}");
 }

@@ -337,6 +337,10 @@ pub struct TrainWorlds {
     pub payload_kg: [f64; 2],
     pub pushes: TrainPushes,
     pub terrain_seed_base: u64,
+    /// Share of the environments in the robot file's own world: its flat floor and friction,
+    /// no payload, no pushes (the world the comparison measures; without any, the policy
+    /// learns only corrections for disturbed worlds and carries them onto the flat floor).
+    pub nominal_share: f64,
 }
 
 impl Default for TrainWorlds {
@@ -356,6 +360,7 @@ impl Default for TrainWorlds {
                 max_dv_mps: 0.5,
             },
             terrain_seed_base: 1000,
+            nominal_share: 0.0,
         }
     }
 }
@@ -364,8 +369,11 @@ impl Default for TrainWorlds {
 #[derive(Clone, Debug, PartialEq)]
 pub struct TrainWorld {
     pub terrain: Terrain,
-    pub floor_friction: f64,
+    /// None: the robot file's.
+    pub floor_friction: Option<f64>,
     pub payload_kg: f64,
+    /// Whether episodes here get the run's pushes.
+    pub pushes: bool,
 }
 
 impl TrainWorlds {
@@ -373,6 +381,7 @@ impl TrainWorlds {
         let p = "eemp_rl.worlds";
         check_range(&format!("{p}.rough_share"), self.rough_share, 0.0, 1.0)?;
         check_range(&format!("{p}.patch_share"), self.patch_share, 0.0, 1.0)?;
+        check_range(&format!("{p}.nominal_share"), self.nominal_share, 0.0, 1.0)?;
         for (name, [lo, hi], min, max) in [
             ("rough_amplitude_m", self.rough_amplitude_m, 0.001, 0.1),
             ("rough_wavelength_m", self.rough_wavelength_m, 0.1, 5.0),
@@ -408,6 +417,10 @@ impl TrainWorlds {
         let x0 = uniform(self.patch_start_m);
         let length = uniform(self.patch_length_m);
         let payload_kg = uniform(self.payload_kg);
+        // Drawn last, so that the other draws are those of a config without it.
+        if uniform([0.0, 1.0]) < self.nominal_share {
+            return TrainWorld::nominal();
+        }
         TrainWorld {
             terrain: Terrain {
                 rough: rough.then(|| Rough {
@@ -428,19 +441,21 @@ impl TrainWorlds {
                 },
                 ..Default::default()
             },
-            floor_friction,
+            floor_friction: Some(floor_friction),
             payload_kg,
+            pushes: true,
         }
     }
 }
 
 impl TrainWorld {
-    /// The flat floor of the robot file.
-    pub fn flat(robot: &RobotConfig) -> Self {
+    /// The robot file's own world: its flat floor and friction, no payload, no pushes.
+    pub fn nominal() -> Self {
         TrainWorld {
             terrain: Terrain::default(),
-            floor_friction: robot.simulation.floor_friction,
+            floor_friction: None,
             payload_kg: 0.0,
+            pushes: false,
         }
     }
 
@@ -449,7 +464,7 @@ impl TrainWorld {
         let (r, scene) = simulated_world(
             robot,
             &self.terrain,
-            Some(self.floor_friction),
+            self.floor_friction,
             &ModelError::default(),
             self.payload_kg,
         );
@@ -477,11 +492,11 @@ pub struct EempRlConfig {
     pub rewards: EempRlRewards,
     /// CoT of an interval is clipped here (a standing interval has no distance).
     pub cot_clip: f64,
-    /// The controller lowers the MPC's friction after slips (`eemp_core::slip`). Off by
-    /// default: the shipped policy was trained without it, and a policy runs with the
-    /// controller it was trained with (with an early form of the adapter on, floor 0.1–0.2,
-    /// the 450 k policy fell in 0 to 6 of the comparison's 30 runs depending on the floor,
-    /// against 1 without; the 700 k policy at floor 0.1 in 4, against 0).
+    /// The controller lowers the MPC's friction after slips (`eemp_core::slip`). Off when a
+    /// file does not say, as the earlier policies (v1, stage 1, touchdown) were trained; a
+    /// policy runs with the controller it was trained with (with an early form of the adapter
+    /// on, floor 0.1–0.2, the 450 k policy fell in 0 to 6 of the comparison's 30 runs
+    /// depending on the floor, against 1 without). The shipped policy's config turns it on.
     pub adapt_friction: bool,
     /// When the free gait swings a diagonal partner along (`eemp_core::planner::FreePairing`).
     /// The earlier rule (`FreePairing::UNPAIRED`) when a file does not say, as the first
@@ -741,6 +756,8 @@ pub struct EempRlEnv {
     min_substeps: usize,
     fell: bool,
     last_interval: Option<WalkMetrics>,
+    /// Whether this environment's world gets the training worlds' pushes.
+    world_pushes: bool,
 }
 
 impl super::OnClosedLoop for EempRlEnv {
@@ -766,7 +783,9 @@ impl EempRlEnv {
         config: EempRlConfig,
     ) -> Result<Self, String> {
         let (simulated, model) = world.build(robot)?;
-        Self::with_model(robot, &simulated, model, config)
+        let mut env = Self::with_model(robot, &simulated, model, config)?;
+        env.world_pushes = world.pushes;
+        Ok(env)
     }
 
     /// An environment whose controller models `robot` and whose simulation runs `simulated` on
@@ -801,6 +820,7 @@ impl EempRlEnv {
             steps: 0,
             fell: false,
             last_interval: None,
+            world_pushes: true,
             robot: robot.clone(),
             config,
         })
@@ -961,10 +981,14 @@ impl Env for EempRlEnv {
     fn reset(&mut self, rng: &mut ChaCha8Rng, obs: &mut [f32]) {
         self.sample_command(rng);
         let seed: u64 = rng.random_range(1..u64::MAX);
-        let pushes = match &self.config.worlds {
+        // Drawn in every world, so that the episode's other draws do not depend on the world.
+        let mut pushes = match &self.config.worlds {
             Some(w) => w.pushes.draw(self.config.episode_s, rng),
             None => Vec::new(),
         };
+        if !self.world_pushes {
+            pushes.clear();
+        }
         self.reset_with(self.command, seed, &pushes, obs);
     }
 
