@@ -42,7 +42,8 @@ pub struct ReproduceArgs {
     /// With --check: a change of the code that made an artifact counts too.
     #[arg(long, requires = "check")]
     pub strict: bool,
-    /// Run the selected stages even when they are up to date.
+    /// Run the selected stages even when they are up to date, from scratch (a finished run's
+    /// scratch folder is emptied; a forced run that was killed resumes).
     #[arg(long, conflicts_with = "check")]
     pub force: bool,
     /// List the stages and what they make.
@@ -135,6 +136,7 @@ pub fn run(args: &ReproduceArgs) -> Result<bool, String> {
                 stage,
                 &inputs_digest(&inputs, args.quick),
                 Some((k, n)),
+                args.force,
             )?;
             run_actions(&root, stage, &stage.actions(args.quick, Some((k, n))))?;
             println!(
@@ -159,7 +161,7 @@ pub fn run(args: &ReproduceArgs) -> Result<bool, String> {
         // beside it) leaves it stale, not up to date.
         let inputs = hash_all(&root, &stage.inputs).map_err(|e| e.to_string())?;
         let digest = inputs_digest(&inputs, args.quick);
-        claim_work_dir(&root, stage, &digest, None)?;
+        claim_work_dir(&root, stage, &digest, None, args.force)?;
         if let (Some(n), true) = (args.merge_shards, stage.shardable()) {
             if shards_current(&root, stage, &digest, n) {
                 run_actions(&root, stage, &stage.merge_actions(args.quick, n))?;
@@ -221,21 +223,35 @@ fn stamp_of(root: &Path, rel: &str) -> PathBuf {
 /// the inputs it was started with. A folder started with other inputs (or at the other scale) is
 /// emptied first, so a changed robot file or config never resumes into results made before the
 /// change; a folder without a digest is kept as it is. Each shard claims only its own folder.
+/// `force` (a stage run although up to date, e.g. after a code change): a folder whose run
+/// finished (the stage's manifest is newer than the folder's digest) is emptied too, or the
+/// resumable steps would only copy the old results again; a forced run that was killed resumes.
 fn claim_work_dir(
     root: &Path,
     stage: &Stage,
     digest: &str,
     shard: Option<(usize, usize)>,
+    force: bool,
 ) -> Result<(), String> {
     let rel = stage.work_dir_of(shard);
     let work = root.join(&rel);
     let stamp = stamp_of(root, &rel);
     if let Ok(old) = std::fs::read_to_string(&stamp) {
-        if old != digest && work.exists() {
-            println!(
-                "[{}] its inputs changed since {rel} was started: starting it afresh",
-                stage.name
-            );
+        let modified = |p: &Path| std::fs::metadata(p).and_then(|m| m.modified()).ok();
+        let manifest = eemp_study::pipeline::Manifest::path(root, &stage.name);
+        let finished = matches!(
+            (modified(&manifest), modified(&stamp)),
+            (Some(m), Some(s)) if m >= s
+        );
+        let why = if old != digest {
+            Some(format!("its inputs changed since {rel} was started"))
+        } else if force && finished {
+            Some(format!("--force: {rel} holds a finished run"))
+        } else {
+            None
+        };
+        if let (Some(why), true) = (why, work.exists()) {
+            println!("[{}] {why}: starting it afresh", stage.name);
             std::fs::remove_dir_all(&work)
                 .map_err(|e| format!("cannot empty {}: {e}", work.display()))?;
         }

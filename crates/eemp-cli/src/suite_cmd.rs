@@ -755,14 +755,28 @@ pub fn compare(args: &SuiteArgs) -> Result<(), String> {
 /// A method's cell in a case (scenario, speed).
 type CellOf<'a> = dyn Fn(&str, &(String, f64)) -> Option<&'a Cell> + 'a;
 
+/// Whether an EEMP-RL policy's controller runs slip handling (its training config says); None
+/// where the file cannot be read here.
+#[cfg(feature = "learning")]
+fn policy_runs_slip_handling(path: &Path) -> Option<bool> {
+    let task = Some(eemp_rl::config::TaskKind::EempRl);
+    let policy = eemp_rl::policy::Policy::load(path, task).ok()?;
+    Some(policy.config.eemp_rl.adapt_friction)
+}
+
+#[cfg(not(feature = "learning"))]
+fn policy_runs_slip_handling(_: &Path) -> Option<bool> {
+    None
+}
+
 fn rl_against_table<'a>(
     cfg: &SuiteConfig,
     cats: &[(String, f64)],
     cell: &CellOf<'a>,
     md: &mut String,
 ) {
-    // The table's walk with the controller EEMP-RL runs (no slip handling, as it was trained)
-    // where the suite has it, else the free gait's default.
+    // The table's walk with the controller EEMP-RL runs: slip handling as the policy was
+    // trained (its config says), where the suite has that method, else the free gait's default.
     let free_table = |m: &&MethodConfig, slip: Option<bool>| {
         m.kind == "eemp"
             && m.gait.as_deref() == Some("free")
@@ -774,7 +788,11 @@ fn rl_against_table<'a>(
     let mut lines = Vec::new();
     for r in cfg.methods.iter().filter(|m| m.kind == "eemp-rl") {
         let same = |t: &&MethodConfig| t.estimator(cfg) == r.estimator(cfg);
-        let Some(t) = [Some(false), None]
+        let order = match r.policy.as_deref().and_then(policy_runs_slip_handling) {
+            Some(true) => [None, Some(true)],
+            _ => [Some(false), None],
+        };
+        let Some(t) = order
             .into_iter()
             .find_map(|slip| cfg.methods.iter().find(|t| free_table(t, slip) && same(t)))
         else {

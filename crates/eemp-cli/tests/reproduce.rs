@@ -226,7 +226,7 @@ fn bad_input_names_the_stage_shard_or_file_and_writes_nothing() {
 }
 
 #[test]
-fn a_stage_whose_inputs_changed_starts_its_scratch_folder_afresh() {
+fn a_stage_whose_inputs_changed_or_that_is_forced_after_finishing_starts_afresh() {
     let d = tempfile::tempdir().unwrap();
     let root = d.path();
     std::fs::create_dir_all(root.join("robots")).unwrap();
@@ -257,9 +257,23 @@ copy = ["robots/a1.toml", "copied.toml"]
         String::from_utf8_lossy(&o.stdout).into_owned()
     };
     run();
-    // Work left in the scratch folder (a killed step's) is resumed while the inputs hold…
+    // --force on a finished stage runs it from scratch (a resumable step would only copy the
+    // finished results again)…
     let marker = root.join("out/reproduce/model/partial-work");
     std::fs::write(&marker, "").unwrap();
+    let stdout = run();
+    assert!(
+        stdout.contains("--force") && stdout.contains("afresh"),
+        "{stdout}"
+    );
+    assert!(!marker.exists());
+    // …but work left by a forced run that was killed (its digest written after the manifest)
+    // is resumed while the inputs hold…
+    std::fs::write(&marker, "").unwrap();
+    let stamp = root.join("out/reproduce/.inputs/model.digest");
+    let digest = std::fs::read(&stamp).unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(50));
+    std::fs::write(&stamp, digest).unwrap();
     assert!(!run().contains("afresh"));
     assert!(marker.exists());
     // …and dropped once an input changed: it was made with the old robot file.
