@@ -1,5 +1,5 @@
 //! `--mpc-friction`, `--mpc-horizon`, `--mpc-period`, `--adapt-friction`/`--no-adapt-friction`,
-//! `--initial-friction`, `--ellipse-friction-factor`: the MPC's settings and slip handling of
+//! `--initial-friction`, `--hold-cap-after-slip`, `--ellipse-friction-factor`: the MPC's settings and slip handling of
 //! a walk.
 
 #[derive(clap::Args, Clone, Debug)]

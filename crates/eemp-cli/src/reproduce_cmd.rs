@@ -43,7 +43,7 @@ pub struct ReproduceArgs {
     #[arg(long, requires = "check")]
     pub strict: bool,
     /// Run the selected stages even when they are up to date, from scratch (a finished run's
-    /// scratch folder is emptied; a forced run that was killed resumes).
+    /// scratch folder is emptied; a run that was killed resumes).
     #[arg(long, conflicts_with = "check")]
     pub force: bool,
     /// List the stages and what they make.
@@ -139,6 +139,7 @@ pub fn run(args: &ReproduceArgs) -> Result<bool, String> {
                 args.force,
             )?;
             run_actions(&root, stage, &stage.actions(args.quick, Some((k, n))))?;
+            mark_finished(&root, &stage.work_dir_of(Some((k, n))))?;
             println!(
                 "[{}] shard {k}/{n} done; merge the shards into {} (eemp sweep merge …, or \
                  eemp compare|robustness … --merge-from …) and run this stage without --shard",
@@ -185,6 +186,7 @@ pub fn run(args: &ReproduceArgs) -> Result<bool, String> {
         )?
         .save(&root)
         .map_err(|e| e.to_string())?;
+        mark_finished(&root, &stage.work_dir_of(None))?;
         println!("[{}] done in {:.0} s", stage.name, wall_s);
         timings.push((stage.name.clone(), wall_s));
     }
@@ -224,8 +226,8 @@ fn stamp_of(root: &Path, rel: &str) -> PathBuf {
 /// emptied first, so a changed robot file or config never resumes into results made before the
 /// change; a folder without a digest is kept as it is. Each shard claims only its own folder.
 /// `force` (a stage run although up to date, e.g. after a code change): a folder whose run
-/// finished (the stage's manifest is newer than the folder's digest) is emptied too, or the
-/// resumable steps would only copy the old results again; a forced run that was killed resumes.
+/// finished (marked so when its steps succeeded) is emptied too, or the resumable steps would
+/// only copy the old results again; a run that was killed (unmarked) resumes.
 fn claim_work_dir(
     root: &Path,
     stage: &Stage,
@@ -236,13 +238,9 @@ fn claim_work_dir(
     let rel = stage.work_dir_of(shard);
     let work = root.join(&rel);
     let stamp = stamp_of(root, &rel);
+    let done = finished_marker(&stamp);
+    let finished = done.exists();
     if let Ok(old) = std::fs::read_to_string(&stamp) {
-        let modified = |p: &Path| std::fs::metadata(p).and_then(|m| m.modified()).ok();
-        let manifest = eemp_study::pipeline::Manifest::path(root, &stage.name);
-        let finished = matches!(
-            (modified(&manifest), modified(&stamp)),
-            (Some(m), Some(s)) if m >= s
-        );
         let why = if old != digest {
             Some(format!("its inputs changed since {rel} was started"))
         } else if force && finished {
@@ -256,6 +254,10 @@ fn claim_work_dir(
                 .map_err(|e| format!("cannot empty {}: {e}", work.display()))?;
         }
     }
+    if finished {
+        std::fs::remove_file(&done)
+            .map_err(|e| format!("cannot remove {}: {e}", done.display()))?;
+    }
     let stamps = stamp
         .parent()
         .expect("in out/reproduce/.inputs")
@@ -265,6 +267,16 @@ fn claim_work_dir(
     }
     eemp_study::store::write_atomic(&stamp, digest.as_bytes())
         .map_err(|e| format!("cannot write {}: {e}", stamp.display()))
+}
+
+/// Beside a scratch folder's digest: its steps ran to the end (removed when it is claimed again).
+fn finished_marker(stamp: &Path) -> PathBuf {
+    stamp.with_extension("finished")
+}
+
+fn mark_finished(root: &Path, rel: &str) -> Result<(), String> {
+    let done = finished_marker(&stamp_of(root, rel));
+    std::fs::write(&done, b"").map_err(|e| format!("cannot write {}: {e}", done.display()))
 }
 
 /// Whether all `n` shards of `stage` were made from its inputs as they are now (a shard of

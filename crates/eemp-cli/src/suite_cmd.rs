@@ -781,6 +781,10 @@ fn rl_against_table<'a>(
         m.kind == "eemp"
             && m.gait.as_deref() == Some("free")
             && m.adapt_friction == slip
+            && m.initial_friction.is_none()
+            && m.hold_cap_after_slip.is_none()
+            && m.ellipse_friction_factor.is_none()
+            && m.mpc_horizon.is_none()
             && m.free_pairing.is_none()
             && m.kf_velocity_jump_mps.is_none()
             && m.kf_leg_outlier_mps.is_none()
@@ -788,7 +792,15 @@ fn rl_against_table<'a>(
     let mut lines = Vec::new();
     for r in cfg.methods.iter().filter(|m| m.kind == "eemp-rl") {
         let same = |t: &&MethodConfig| t.estimator(cfg) == r.estimator(cfg);
-        let order = match r.policy.as_deref().and_then(policy_runs_slip_handling) {
+        let slip = r.policy.as_deref().and_then(policy_runs_slip_handling);
+        if slip.is_none() {
+            eprintln!(
+                "note: cannot read {}'s policy: it is compared with the table without slip \
+                 handling",
+                r.name
+            );
+        }
+        let order = match slip {
             Some(true) => [None, Some(true)],
             _ => [Some(false), None],
         };

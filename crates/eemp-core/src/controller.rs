@@ -125,7 +125,8 @@ pub struct LocomotionController {
 }
 
 impl LocomotionController {
-    /// The robot's `[control]` defaults fill what `config` leaves open.
+    /// The robot's `[control]` defaults fill what `config` leaves open (a slip start neither
+    /// gives: [`crate::slip::CAUTIOUS_START`]).
     pub fn new(robot: &RobotConfig, mut config: ControllerConfig) -> Result<Self, ConfigError> {
         if config.slip.initial_friction.is_none() {
             config.slip.initial_friction = Some(

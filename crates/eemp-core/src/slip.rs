@@ -97,12 +97,15 @@ pub struct SlipConfig {
     pub refractory_s: f64,
     /// A loaded stance foot that holds (no slide, relative or over the ground) while the MPC
     /// asks it for a tangential/normal force ratio above the coefficient shows the floor gives
-    /// at least that much: the coefficient rises to that ratio (up to the nominal). Pushes ask
+    /// at least that much: the coefficient rises to that ratio (up to the nominal, and after a slip
+    /// up to `hold_cap_after_slip`'s cap). Pushes ask
     /// for such forces, so after a push on a grippy floor the coefficient comes back within a
     /// few solves instead of the recovery's tens of seconds.
     pub raise_on_hold: bool,
-    /// The coefficient the adapter starts from (none: the MPC's nominal). A robot set down on
-    /// an unknown floor starts cautious and lets feet that hold raise it (`raise_on_hold`).
+    /// The coefficient the adapter starts from. A robot set down on an unknown floor starts
+    /// cautious and lets feet that hold raise it (`raise_on_hold`). None: the robot file's
+    /// `control.slip_initial_friction`, else [`CAUTIOUS_START`] (`LocomotionController::new`
+    /// fills it); a bare [`FrictionAdapter`] starts at the MPC's nominal.
     pub initial_friction: Option<f64>,
     /// After a slip, a hold never raises the coefficient above this factor times the
     /// coefficient in force at that slip (the lowest such cap so far, recovering at
@@ -113,15 +116,16 @@ pub struct SlipConfig {
     pub hold_cap_after_slip: f64,
     /// The cap's own recovery towards the nominal, per second (faster than the coefficient's
     /// `recovery_per_s`, so that after a push on a grippy floor holds bring the coefficient
-    /// back within seconds).
+    /// back within seconds; 0: the cap stays).
     pub hold_cap_recovery_per_s: f64,
 }
 
 /// The coefficient slip handling starts from when neither the run (`slip.initial_friction`)
 /// nor the robot file (`control.slip_initial_friction`) gives one: the robot does not know the
 /// floor, so it starts at a coefficient a 0.3 floor gives and lets feet that hold raise it
-/// (issue 22: with it the trot and the free gait fell in 27 of 216 runs on slippery floors and
-/// under pushes, seeds 11–16, against 54 with the nominal start; see the module docs).
+/// (issue 22: with it and the hold cap the trot and the free gait fell in 27 of 216 runs on
+/// slippery floors and under pushes, seeds 11–16, against 34 with the cap and the nominal start
+/// and 54 with neither; see the module docs).
 pub const CAUTIOUS_START: f64 = 0.3;
 
 impl Default for SlipConfig {
@@ -295,7 +299,9 @@ impl FrictionAdapter {
                 let refractory = self
                     .last_backoff_s
                     .is_some_and(|t0| t_s - t0 < self.config.refractory_s);
-                if self.config.hold_cap_after_slip > 0.0 {
+                // One event (within the refractory time) sets the cap once, from the coefficient
+                // it found, as it backs off once.
+                if self.config.hold_cap_after_slip > 0.0 && !refractory {
                     let cap = self.config.hold_cap_after_slip * self.current;
                     self.hold_cap = Some(self.hold_cap.map_or(cap, |c| c.min(cap)));
                 }
@@ -499,6 +505,31 @@ mod tests {
         b.update(0.06, &LegMap::splat(false), &still(), &loaded());
         b.update(0.07, &stance, &still(), &loaded());
         assert!((b.update(0.2, &stance, &still(), &f) - 0.594).abs() < 1e-3);
+    }
+
+    #[test]
+    fn a_second_slip_of_the_same_event_leaves_the_cap_where_the_first_set_it() {
+        let config = SlipConfig {
+            hold_cap_after_slip: 0.95,
+            refractory_s: 0.3,
+            ..on()
+        };
+        let mut a = FrictionAdapter::new(config, 0.6).unwrap();
+        let stance = LegMap::splat(true);
+        a.update(0.0, &stance, &still(), &loaded());
+        let mut v = still();
+        v[Leg::FrontRight] = Vector3::new(0.3, 0.0, 0.0);
+        a.update(0.05, &stance, &v, &loaded()); // 0.6 → 0.42, cap 0.57
+        v[Leg::RearLeft] = Vector3::new(0.0, 0.3, 0.0);
+        a.update(0.06, &stance, &v, &loaded()); // the same event: neither moves
+        assert_eq!(a.slips(), 2);
+        // A new stance whose foot holds 0.56 of its load: raised to it, not to 0.95 × 0.42.
+        a.update(0.07, &LegMap::splat(false), &still(), &loaded());
+        a.update(0.08, &stance, &still(), &loaded());
+        let mut f = loaded();
+        f[Leg::FrontLeft] = Vector3::new(22.4, 0.0, 40.0);
+        let mu = a.update(0.2, &stance, &still(), &f);
+        assert!((mu - 0.56).abs() < 1e-9, "{mu}");
     }
 
     #[test]
