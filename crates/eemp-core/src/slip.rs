@@ -300,7 +300,8 @@ impl FrictionAdapter {
                     .last_backoff_s
                     .is_some_and(|t0| t_s - t0 < self.config.refractory_s);
                 // One event (within the refractory time) sets the cap once, from the coefficient
-                // it found, as it backs off once.
+                // it found, as it backs off once. (With the defaults the new cap is never above
+                // the old; a cap that recovers slower than the coefficient keeps the lower.)
                 if self.config.hold_cap_after_slip > 0.0 && !refractory {
                     let cap = self.config.hold_cap_after_slip * self.current;
                     self.hold_cap = Some(self.hold_cap.map_or(cap, |c| c.min(cap)));
