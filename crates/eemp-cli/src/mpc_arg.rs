@@ -24,6 +24,10 @@ pub struct MpcArgs {
     /// factor × the coefficient at that slip (`slip.hold_cap_after_slip`; default 0.95; 0: no cap).
     #[arg(long)]
     pub hold_cap_after_slip: Option<f64>,
+    /// With slip handling: a foot that holds raises the coefficient to this fraction of the
+    /// tangential/normal ratio the MPC asked of it (`slip.hold_raise_fraction`, 0.1–1; default 1).
+    #[arg(long)]
+    pub hold_raise_fraction: Option<f64>,
     /// The placement ellipses stay within the friction cone seen from the hip: r ≤ factor · μ̂
     /// · X_z, μ̂ the slip detector's coefficient (`planner.ellipse_friction_factor`; 0: off).
     #[arg(long, default_value_t = eemp_core::planner::PlannerConfig::default().ellipse_friction_factor)]

@@ -52,6 +52,10 @@ pub struct MethodConfig {
     /// absent: its default; 0: off).
     #[serde(default)]
     pub hold_cap_after_slip: Option<f64>,
+    /// EEMP with slip handling: the fraction of the asked ratio a hold raises the coefficient to
+    /// (`slip.hold_raise_fraction`; absent: its default 1).
+    #[serde(default)]
+    pub hold_raise_fraction: Option<f64>,
     /// EEMP: the ellipses' cap by the slip detector's coefficient
     /// (`planner.ellipse_friction_factor`; absent: its default 1; 0: off).
     #[serde(default)]
@@ -123,6 +127,7 @@ impl MethodConfig {
             d.adapt_friction = self.adapt_friction;
             d.initial_friction = self.initial_friction;
             d.hold_cap_after_slip = self.hold_cap_after_slip;
+            d.hold_raise_fraction = self.hold_raise_fraction;
             d.mpc_horizon = self.mpc_horizon;
             if let Some(f) = self.ellipse_friction_factor {
                 d.ellipse_friction_factor = f;
@@ -410,6 +415,7 @@ impl SuiteConfig {
                         (m.adapt_friction.is_some(), "adapt_friction"),
                         (m.initial_friction.is_some(), "initial_friction"),
                         (m.hold_cap_after_slip.is_some(), "hold_cap_after_slip"),
+                        (m.hold_raise_fraction.is_some(), "hold_raise_fraction"),
                         (
                             m.ellipse_friction_factor.is_some(),
                             "ellipse_friction_factor",

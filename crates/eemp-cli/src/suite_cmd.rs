@@ -783,6 +783,7 @@ fn rl_against_table<'a>(
             && m.adapt_friction == slip
             && m.initial_friction.is_none()
             && m.hold_cap_after_slip.is_none()
+            && m.hold_raise_fraction.is_none()
             && m.ellipse_friction_factor.is_none()
             && m.mpc_horizon.is_none()
             && m.free_pairing.is_none()

@@ -117,6 +117,7 @@ impl WalkArgs {
             adapt_friction: self.mpc.adapt_friction(),
             initial_friction: self.mpc.initial_friction,
             hold_cap_after_slip: self.mpc.hold_cap_after_slip,
+            hold_raise_fraction: self.mpc.hold_raise_fraction,
             free_pair_tolerance: self.free.free_pair_tolerance,
             free_support_margin_m: self.free.free_support_margin,
             free_support_check: None,

@@ -78,6 +78,10 @@ fn bad_walk_and_stand_input_exits_2_names_the_value_and_writes_nothing() {
             &["walk", "--hold-cap-after-slip", "1.5"],
             &["slip.hold_cap_after_slip", "1.5", "[0, 1]"],
         ),
+        (
+            &["walk", "--hold-raise-fraction", "0.05"],
+            &["slip.hold_raise_fraction", "0.05"],
+        ),
     ];
     for (args, needles) in cases {
         let (code, stderr, wrote) = eemp(&dir, args);

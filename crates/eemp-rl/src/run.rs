@@ -199,6 +199,9 @@ pub struct WalkDescription {
     pub initial_friction: Option<f64>,
     /// With slip handling: the cap on raises after a slip (`slip.hold_cap_after_slip`; 0: off).
     pub hold_cap_after_slip: Option<f64>,
+    /// With slip handling: the fraction of the asked ratio a hold raises the coefficient to
+    /// (`slip.hold_raise_fraction`).
+    pub hold_raise_fraction: Option<f64>,
     pub free_pair_tolerance: Option<f64>,
     pub free_support_margin_m: Option<f64>,
     /// Whether the free gait's support rule applies (`FreePairing::support_check`).
@@ -240,6 +243,7 @@ impl Default for WalkDescription {
             adapt_friction: None,
             initial_friction: None,
             hold_cap_after_slip: None,
+            hold_raise_fraction: None,
             free_pair_tolerance: None,
             free_support_margin_m: None,
             free_support_check: None,
@@ -308,12 +312,13 @@ impl WalkDescription {
         }
         if (self.adapt_friction.is_some()
             || self.initial_friction.is_some()
-            || self.hold_cap_after_slip.is_some())
+            || self.hold_cap_after_slip.is_some()
+            || self.hold_raise_fraction.is_some())
             && !is_eemp
         {
             return Err(format!(
-                "--no-adapt-friction, --adapt-friction, --initial-friction and \
-                 --hold-cap-after-slip are for \
+                "--no-adapt-friction, --adapt-friction, --initial-friction, \
+                 --hold-cap-after-slip and --hold-raise-fraction are for \
                  --controller eemp, not {} (a policy runs with the controller it was trained \
                  with)",
                 self.controller
@@ -434,6 +439,9 @@ impl WalkDescription {
         }
         if let Some(cap) = self.hold_cap_after_slip {
             spec.controller.slip.hold_cap_after_slip = cap;
+        }
+        if let Some(k) = self.hold_raise_fraction {
+            spec.controller.slip.hold_raise_fraction = k;
         }
         spec.seed = self.sensing.seed;
         spec.state_source = self.sensing.source(&robot)?;
