@@ -46,7 +46,7 @@ fn bad_walk_and_stand_input_exits_2_names_the_value_and_writes_nothing() {
         malformed.to_str().unwrap(),
     );
     // (arguments, what the message must contain)
-    let cases: [(&[&str], &[&str]); 10] = [
+    let cases: [(&[&str], &[&str]); 11] = [
         (
             &["walk", "--gait", "gallop"],
             &["gallop", "trot, walk, free"],
