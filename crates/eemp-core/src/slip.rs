@@ -1,9 +1,9 @@
 //! The floor's friction from slips: a stance foot that slides says the floor gives less than the
 //! MPC's friction pyramid assumes, so the MPC is told a lower friction coefficient; a foot that
-//! holds a steeper force than the coefficient raises it again. On by default for every gait (issue
-//! 22; the walk's slides must also move over the ground and stay on the floor:
+//! holds a steeper force than the coefficient raises it again. On by default for the trot and
+//! the free gait (issue 22; the walk's, off by default, gates its slides: see
 //! [`SlipConfig::default_for`]; `controller.slip.adapt_friction`, `eemp walk --no-adapt-friction`
-//! turns it off). The
+//! turns it off, `--adapt-friction` on). The
 //! measurements below the rule were made with the earlier form (no refractory time, no raise
 //! on hold), which traded push recovery for slippery floors.
 //!
@@ -170,19 +170,23 @@ impl Default for SlipConfig {
 }
 
 impl SlipConfig {
-    /// The default for a gait: on for every gait; the walk's slides must also move over the
-    /// ground and stay on the floor (`require_ground_speed`, `max_vertical_speed_mps` 0.2 m/s).
-    /// Without those two the walk's feet read as sliding on the 0.8 floor at 0.5 m/s (late
-    /// touchdowns, lift-offs, the anchor's own reading): the coefficient sat at its floor and
-    /// CoT rose 8 % (0.725 against 0.673 with slip handling off; filter, seeds 11–16). With
-    /// them it is 0.607, and the walk fell in 23 of 108 runs on the slippery floors and pushes
-    /// against 26 without them and 34 with slip handling off. The trot and the free gait keep
-    /// both off: each alone raised their falls under pushes on the 0.3 floor (ground speed: 53,
-    /// vertical speed: 50, both: 56 of 72 runs against 44; seeds 11–22), where slides of feet
-    /// that also move vertically are real.
+    /// The default for a gait: on for the trot and the free gait, off for the walk. Turned on
+    /// (`--adapt-friction`), the walk's slides must also move over the ground and stay on the
+    /// floor (`require_ground_speed`, `max_vertical_speed_mps` 0.2 m/s). Without those two its
+    /// feet read as sliding on the 0.8 floor at 0.5 m/s (late touchdowns, lift-offs, the
+    /// anchor's own reading): the coefficient sat at its floor and CoT rose 8 % (0.725 against
+    /// 0.673 off; filter, seeds 11–16). With them it is 0.607, and the walk fell in 23 of 108
+    /// runs on the slippery floors and pushes against 26 without them and 34 off. It stays off
+    /// by default because at 0.7 and 1.0 m/s on the flat floor (ground truth, seeds 0–3) the
+    /// walk's landing feet really slide (≈ 1 m/s at touchdown), the coefficient falls to 0.15
+    /// and the walk falls in 4 of 4 runs, against 0 of 4 off. The trot and the free gait keep
+    /// both gates off: each alone raised their falls under pushes on the 0.3 floor (ground
+    /// speed: 53, vertical speed: 50, both: 56 of 72 runs against 44; seeds 11–22), where
+    /// slides of feet that also move vertically are real.
     pub fn default_for(gait: crate::planner::gait::Gait) -> Self {
         let walk = gait == crate::planner::gait::Gait::Walk;
         SlipConfig {
+            adapt_friction: !walk,
             max_vertical_speed_mps: if walk { 0.2 } else { 0.0 },
             require_ground_speed: walk,
             ..Default::default()
@@ -444,7 +448,11 @@ mod tests {
             hold_cap_after_slip: 0.0,
             ..SlipConfig::default_for(crate::planner::gait::Gait::Walk)
         };
-        assert!(walk.adapt_friction);
+        assert!(!walk.adapt_friction);
+        let walk = SlipConfig {
+            adapt_friction: true,
+            ..walk
+        };
         let trot = SlipConfig {
             initial_friction: None,
             hold_cap_after_slip: 0.0,
