@@ -1,5 +1,6 @@
 //! `--mpc-friction`, `--mpc-horizon`, `--mpc-period`, `--adapt-friction`/`--no-adapt-friction`,
-//! `--initial-friction`, `--hold-cap-after-slip`, `--ellipse-friction-factor`: the MPC's settings and slip handling of
+//! `--initial-friction`, `--hold-cap-after-slip`, `--hold-raise-fraction`,
+//! `--ellipse-friction-factor`: the MPC's settings and slip handling of
 //! a walk.
 
 #[derive(clap::Args, Clone, Debug)]
@@ -13,7 +14,7 @@ pub struct MpcArgs {
     #[arg(long, conflicts_with = "adapt_friction")]
     pub no_adapt_friction: bool,
     /// Slip handling on whatever the gait (the walk's default is off: on, it throws the walk at
-    /// 0.7–1.0 m/s on the flat floor; see `SlipConfig::default_for`).
+    /// 0.7–1.0 m/s on the flat floor on ground truth; see `SlipConfig::default_for`).
     #[arg(long)]
     pub adapt_friction: bool,
     /// With slip handling: the friction coefficient it starts from, raised by stance feet that

@@ -41,7 +41,8 @@ pub struct MethodConfig {
     /// method on ground truth beside it on the filter).
     #[serde(default)]
     pub estimator: Option<String>,
-    /// EEMP: slip handling (`eemp_core::slip`); absent: its default (on).
+    /// EEMP: slip handling (`eemp_core::slip`); absent: the gait's default (on for the trot and
+    /// the free gait, off for the walk).
     #[serde(default)]
     pub adapt_friction: Option<bool>,
     /// EEMP with slip handling: the friction coefficient it starts from (absent: the robot

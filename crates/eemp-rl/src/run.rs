@@ -200,7 +200,7 @@ pub struct WalkDescription {
     /// With slip handling: the cap on raises after a slip (`slip.hold_cap_after_slip`; 0: off).
     pub hold_cap_after_slip: Option<f64>,
     /// With slip handling: the fraction of the asked ratio a hold raises the coefficient to
-    /// (`slip.hold_raise_fraction`).
+    /// (`slip.hold_raise_fraction`, 0.1–1; default 1).
     pub hold_raise_fraction: Option<f64>,
     pub free_pair_tolerance: Option<f64>,
     pub free_support_margin_m: Option<f64>,
@@ -442,6 +442,23 @@ impl WalkDescription {
         }
         if let Some(k) = self.hold_raise_fraction {
             spec.controller.slip.hold_raise_fraction = k;
+        }
+        // Settings of slip handling where it is off would be silently ignored (the walk's
+        // default is off).
+        if !spec.controller.slip.adapt_friction
+            && (self.initial_friction.is_some()
+                || self.hold_cap_after_slip.is_some()
+                || self.hold_raise_fraction.is_some())
+        {
+            return Err(format!(
+                "--initial-friction, --hold-cap-after-slip and --hold-raise-fraction set slip \
+                 handling, which is off for this walk (--gait {gait}{}): add --adapt-friction",
+                if self.adapt_friction == Some(false) {
+                    ", --no-adapt-friction"
+                } else {
+                    ""
+                }
+            ));
         }
         spec.seed = self.sensing.seed;
         spec.state_source = self.sensing.source(&robot)?;
