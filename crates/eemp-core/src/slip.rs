@@ -339,10 +339,10 @@ impl FrictionAdapter {
             let settled = t_s - since >= self.config.settle_s && loaded[leg];
             let v = foot_velocity_world[leg] - anchor;
             let threshold = self.config.speed_threshold_mps;
+            let ground_speed = speed(&foot_velocity_world[leg]);
             let vertical = self.config.max_vertical_speed_mps;
             let on_floor = vertical <= 0.0 || foot_velocity_world[leg].z.abs() <= vertical;
-            let over_ground =
-                !self.config.require_ground_speed || speed(&foot_velocity_world[leg]) > threshold;
+            let over_ground = !self.config.require_ground_speed || ground_speed > threshold;
             let sliding = settled && on_floor && over_ground && speed(&v) > threshold;
             if sliding && !self.slipped_this_stance[leg] {
                 self.slipped_this_stance[leg] = true;
@@ -369,11 +369,12 @@ impl FrictionAdapter {
             let holds = settled
                 && !self.slipped_this_stance[leg]
                 && speed(&v) <= threshold
-                && speed(&foot_velocity_world[leg]) <= threshold;
+                && ground_speed <= threshold;
             if self.config.raise_on_hold && holds {
                 let f = forces_world[leg];
                 let ratio = self.config.hold_raise_fraction * f.x.hypot(f.y) / f.z;
-                let ceiling = self.hold_cap.unwrap_or(self.nominal).min(self.nominal);
+                // The cap never exceeds the nominal (set below the coefficient, recovering to it).
+                let ceiling = self.hold_cap.unwrap_or(self.nominal);
                 if ratio > self.current {
                     self.current = ratio.min(ceiling).max(self.current);
                 }
@@ -445,21 +446,16 @@ mod tests {
     fn the_walks_gates_leave_late_touchdowns_lift_offs_and_a_moving_anchor_alone() {
         // Readings from the walk at 0.5 m/s on the 0.8 floor (filter): each slid under the
         // trot's rule, none under the walk's.
-        let walk = SlipConfig {
-            initial_friction: None,
-            hold_cap_after_slip: 0.0,
-            ..SlipConfig::default_for(crate::planner::gait::Gait::Walk)
-        };
-        assert!(!walk.adapt_friction);
-        let walk = SlipConfig {
+        use crate::planner::gait::Gait;
+        assert!(!SlipConfig::default_for(Gait::Walk).adapt_friction);
+        // The gait's rule turned on, without the cautious start and the cap.
+        let turned_on = |gait| SlipConfig {
             adapt_friction: true,
-            ..walk
-        };
-        let trot = SlipConfig {
             initial_friction: None,
             hold_cap_after_slip: 0.0,
-            ..SlipConfig::default_for(crate::planner::gait::Gait::Trot)
+            ..SlipConfig::default_for(gait)
         };
+        let (walk, trot) = (turned_on(Gait::Walk), turned_on(Gait::Trot));
         let readings = [
             // (the foot, the anchor): a late touchdown, still descending at 0.85 m/s;
             (Vector3::new(0.13, -0.29, -0.85), Vector3::zeros()),

@@ -273,6 +273,13 @@ pub struct BuiltWalk {
 }
 
 impl WalkDescription {
+    /// Whether the run sets any of slip handling's own settings (not whether it is on).
+    fn sets_slip_handling(&self) -> bool {
+        self.initial_friction.is_some()
+            || self.hold_cap_after_slip.is_some()
+            || self.hold_raise_fraction.is_some()
+    }
+
     /// Validates everything and assembles the run; an error names the option and its range.
     pub fn build(&self) -> Result<BuiltWalk, String> {
         let gait: Gait = self.gait.parse()?;
@@ -310,12 +317,7 @@ impl WalkDescription {
                 self.controller
             ));
         }
-        if (self.adapt_friction.is_some()
-            || self.initial_friction.is_some()
-            || self.hold_cap_after_slip.is_some()
-            || self.hold_raise_fraction.is_some())
-            && !is_eemp
-        {
+        if (self.adapt_friction.is_some() || self.sets_slip_handling()) && !is_eemp {
             return Err(format!(
                 "--no-adapt-friction, --adapt-friction, --initial-friction, \
                  --hold-cap-after-slip and --hold-raise-fraction are for \
@@ -445,11 +447,7 @@ impl WalkDescription {
         }
         // Settings of slip handling where it is off would be silently ignored (the walk's
         // default is off).
-        if !spec.controller.slip.adapt_friction
-            && (self.initial_friction.is_some()
-                || self.hold_cap_after_slip.is_some()
-                || self.hold_raise_fraction.is_some())
-        {
+        if !spec.controller.slip.adapt_friction && self.sets_slip_handling() {
             return Err(format!(
                 "--initial-friction, --hold-cap-after-slip and --hold-raise-fraction set slip \
                  handling, which is off for this walk (--gait {gait}{}): add --adapt-friction",
