@@ -280,6 +280,43 @@ fn the_zero_residual_controller_is_eemp_analytical_and_an_untrained_policy_answe
 }
 
 #[test]
+fn the_deadband_drops_small_corrections_and_keeps_the_full_bound_reachable() {
+    let robot = RobotConfig::a1();
+    let mut cfg = residual_config(20.0);
+    let r = cfg.residual.as_mut().unwrap();
+    r.deadband = 0.3;
+    // By hand, swing-time bound 0.05 s: tanh(a) = 0.2 lies inside ±0.3 → 0; tanh(a) = 0.65 →
+    // (0.65 − 0.3)/0.7 = 0.5 → 0.025 s; tanh(a) = −0.86 → −0.8 → −0.04 s; tanh(a) → 1 → the bound.
+    let a = |u: f64| u.atanh() as f32;
+    let d = r.delta(&[a(0.2), a(0.65), a(-0.86), 20.0, f32::NAN]);
+    let b = r.bounds.to_array();
+    let want = [0.0, 0.5 * b[1], -0.8 * b[2], b[3], 0.0];
+    for i in 0..5 {
+        assert!((d[i] - want[i]).abs() < 1e-6 * b[i], "{i}: {} vs {}", d[i], want[i]);
+    }
+    // Without the band the same action moves every finite component.
+    r.deadband = 0.0;
+    assert!((r.delta(&[a(0.2)])[0] - 0.2 * b[0]).abs() < 1e-9);
+    // A policy whose answers stay inside the band walks bit for bit as the table.
+    r.deadband = 0.3;
+    let spec = table_walk_spec(&cfg, 0.5, 3.0, 2);
+    let mut table = Vec::new();
+    run_walk(&robot, &spec, |r| table.push(r.state.body.p_world)).unwrap();
+    let start = EempRlController::<FixedAction>::start_pose(&robot, &cfg, 0.5).unwrap();
+    let small = [0.25f64.atanh() as f32, -0.1, 0.2, -0.3, 0.05];
+    let mut rl = EempRlController::new(&robot, cfg.clone(), FixedAction(small)).unwrap();
+    let mut banded = Vec::new();
+    run_walk_with(&robot, &spec, &start, &mut rl, |r| banded.push(r.state.body.p_world)).unwrap();
+    assert_eq!(table, banded, "inside the band: the table, bit for bit");
+    // Out-of-range bands are refused, naming the key.
+    for bad in [-0.1, 0.95, f64::NAN] {
+        cfg.residual.as_mut().unwrap().deadband = bad;
+        let err = cfg.residual.as_ref().unwrap().validate().unwrap_err().to_string();
+        assert!(err.contains("eemp_rl.residual.deadband"), "{bad}: {err}");
+    }
+}
+
+#[test]
 fn a_residual_config_with_a_bad_table_or_bounds_is_refused_naming_the_file_and_value() {
     let dir = tempfile::tempdir().unwrap();
     let text = std::fs::read_to_string(repo_file("policies/a1_eemp_rl.toml")).unwrap();

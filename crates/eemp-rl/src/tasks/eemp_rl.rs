@@ -204,6 +204,14 @@ pub struct ResidualConfig {
     /// manipulability, which the reward is relative to).
     pub table_file: PathBuf,
     pub bounds: ResidualBounds,
+    /// Corrections within this share of their bound are not applied: each component's
+    /// tanh(a) is soft-thresholded, sign(u)·max(|u| − d, 0)/(1 − d), so the full bound is still
+    /// reachable and a policy whose mean sits inside the band walks exactly the table. 0: off
+    /// (every policy trained before it). Why: PPO cannot resolve the ≤ 1 % CoT a few
+    /// millimetres of ellipse cost on the flat floor (one decision window's CoT varies by
+    /// more), so without it the corrections learnt on disturbed floors carried onto the flat
+    /// one (issue 20, stage 2: 0.5–1 % above the table at 0.3–0.6 m/s).
+    pub deadband: f64,
     pub rewards: ResidualRewards,
     /// The table itself, read from `table_file` when a config file is loaded
     /// ([`ResidualConfig::read_table`]) and kept in a policy file's config, so that a policy
@@ -217,6 +225,7 @@ impl Default for ResidualConfig {
         ResidualConfig {
             table_file: "tables/a1_free.toml".into(),
             bounds: ResidualBounds::default(),
+            deadband: 0.0,
             rewards: ResidualRewards::default(),
             table: None,
         }
@@ -240,6 +249,7 @@ impl ResidualConfig {
             // The bound is at most Table I's span: a larger one could never be used whole.
             check_range(&format!("eemp_rl.residual.bounds.{name}"), b, 1e-6, hi - lo)?;
         }
+        check_range("eemp_rl.residual.deadband", self.deadband, 0.0, 0.9)?;
         let r = &self.rewards;
         for (n, w) in [
             ("energy", r.energy),
@@ -288,19 +298,24 @@ impl ResidualConfig {
         self.table.as_ref().expect("validated: the table is read")
     }
 
-    /// The parameter correction of an action: Δ = bounds ⊙ tanh(a) (a non-finite component
-    /// counts as 0).
+    /// The parameter correction of an action: Δ = bounds ⊙ shrink(tanh(a)), shrink the
+    /// deadband's soft threshold (a non-finite component counts as 0).
     pub fn delta(&self, action: &[f32]) -> [f64; 5] {
         let b = self.bounds.to_array();
         std::array::from_fn(|i| {
             let a = action.get(i).copied().unwrap_or(0.0) as f64;
             if a.is_finite() {
-                b[i] * a.tanh()
+                b[i] * soft_threshold(a.tanh(), self.deadband)
             } else {
                 0.0
             }
         })
     }
+}
+
+/// sign(u)·max(|u| − d, 0)/(1 − d): 0 inside ±d, ±1 at ±1, continuous between.
+fn soft_threshold(u: f64, d: f64) -> f64 {
+    u.signum() * (u.abs() - d).max(0.0) / (1.0 - d)
 }
 
 /// When EEMP-RL decides.
