@@ -291,8 +291,8 @@ fn the_deadband_drops_small_corrections_and_keeps_the_full_bound_reachable() {
     let d = r.delta(&[a(0.2), a(0.65), a(-0.86), 20.0, f32::NAN]);
     let b = r.bounds.to_array();
     let want = [0.0, 0.5 * b[1], -0.8 * b[2], b[3], 0.0];
-    for i in 0..5 {
-        assert!((d[i] - want[i]).abs() < 1e-6 * b[i], "{i}: {} vs {}", d[i], want[i]);
+    for (i, ((got, want), bound)) in d.iter().zip(want).zip(b).enumerate() {
+        assert!((got - want).abs() < 1e-6 * bound, "{i}: {got} vs {want}");
     }
     // Without the band the same action moves every finite component.
     r.deadband = 0.0;
@@ -306,12 +306,21 @@ fn the_deadband_drops_small_corrections_and_keeps_the_full_bound_reachable() {
     let small = [0.25f64.atanh() as f32, -0.1, 0.2, -0.3, 0.05];
     let mut rl = EempRlController::new(&robot, cfg.clone(), FixedAction(small)).unwrap();
     let mut banded = Vec::new();
-    run_walk_with(&robot, &spec, &start, &mut rl, |r| banded.push(r.state.body.p_world)).unwrap();
+    run_walk_with(&robot, &spec, &start, &mut rl, |r| {
+        banded.push(r.state.body.p_world)
+    })
+    .unwrap();
     assert_eq!(table, banded, "inside the band: the table, bit for bit");
     // Out-of-range bands are refused, naming the key.
     for bad in [-0.1, 0.95, f64::NAN] {
         cfg.residual.as_mut().unwrap().deadband = bad;
-        let err = cfg.residual.as_ref().unwrap().validate().unwrap_err().to_string();
+        let err = cfg
+            .residual
+            .as_ref()
+            .unwrap()
+            .validate()
+            .unwrap_err()
+            .to_string();
         assert!(err.contains("eemp_rl.residual.deadband"), "{bad}: {err}");
     }
 }
