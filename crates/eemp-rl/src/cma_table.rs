@@ -148,6 +148,18 @@ pub fn check_config(config: &TrainConfig) -> Result<(), ConfigError> {
             "\"cmaes\" needs [eemp_rl.residual] (the absolute form has no table to correct)",
         ));
     };
+    if r.deadband != 0.0 {
+        // The band is for a policy's noisy answers; CMA-ES searches each entry's correction
+        // itself, and a band would only flatten its search space around the table.
+        return Err(ConfigError::Invalid {
+            name: "eemp_rl.residual.deadband".into(),
+            message: format!(
+                "is {} but \"cmaes\" corrects each table entry directly and has no band \
+                 (allowed: 0, or optimizer = \"ppo\")",
+                r.deadband
+            ),
+        });
+    }
     if let Some(t) = &r.table {
         if t.interpolation != Interpolation::Nearest {
             return Err(ConfigError::Invalid {

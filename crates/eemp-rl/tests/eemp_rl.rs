@@ -390,6 +390,8 @@ fn tiny_cmaes_config() -> eemp_rl::config::TrainConfig {
     let mut c: eemp_rl::config::TrainConfig = toml::from_str(&text).unwrap();
     assert_eq!(c.optimizer, eemp_rl::config::Optimizer::Cmaes);
     c.eemp_rl = residual_config(1.0);
+    // The shipped PPO config's band: CMA-ES has none.
+    c.eemp_rl.residual.as_mut().unwrap().deadband = 0.0;
     c.cmaes.population = 4;
     c.cmaes.episodes_per_candidate = 1;
     c.total_env_steps = 16;
@@ -439,6 +441,13 @@ fn cmaes_needs_the_residual_on_a_nearest_table_and_a_resumed_run_replays_to_the_
     let mut ppo_task = tiny_cmaes_config();
     ppo_task.task = eemp_rl::config::TaskKind::ModelFree;
     assert!(ppo_task.validate().is_err());
+    let mut banded = tiny_cmaes_config();
+    banded.eemp_rl.residual.as_mut().unwrap().deadband = 0.3;
+    let e = banded.validate().unwrap_err().to_string();
+    assert!(
+        e.contains("eemp_rl.residual.deadband") && e.contains("0.3"),
+        "{e}"
+    );
 
     let config = tiny_cmaes_config();
     let robot = RobotConfig::a1();
