@@ -285,8 +285,9 @@ fn the_deadband_drops_small_corrections_and_keeps_the_full_bound_reachable() {
     let mut cfg = residual_config(20.0);
     let r = cfg.residual.as_mut().unwrap();
     r.deadband = 0.3;
-    // By hand, swing-time bound 0.05 s: tanh(a) = 0.2 lies inside ±0.3 → 0; tanh(a) = 0.65 →
-    // (0.65 − 0.3)/0.7 = 0.5 → 0.025 s; tanh(a) = −0.86 → −0.8 → −0.04 s; tanh(a) → 1 → the bound.
+    // By hand, bounds [0.05 s, 0.03 m, 0.01 m, 0.04 m, 0.04 m]: swing time tanh(a) = 0.2 lies
+    // inside ±0.3 → 0; step height 0.65 → (0.65 − 0.3)/0.7 = 0.5 → 0.015 m; body height −0.86 →
+    // −0.8 → −0.008 m; r_x tanh(20) = 1 → the bound, 0.04 m; r_y NaN → 0.
     let a = |u: f64| u.atanh() as f32;
     let d = r.delta(&[a(0.2), a(0.65), a(-0.86), 20.0, f32::NAN]);
     let b = r.bounds.to_array();
@@ -294,9 +295,14 @@ fn the_deadband_drops_small_corrections_and_keeps_the_full_bound_reachable() {
     for (i, ((got, want), bound)) in d.iter().zip(want).zip(b).enumerate() {
         assert!((got - want).abs() < 1e-6 * bound, "{i}: {got} vs {want}");
     }
-    // Without the band the same action moves every finite component.
+    // Without the band the same action moves every finite component, and the correction is
+    // b·tanh(a) bit for bit (what every policy trained before the band ran), −0.0 included.
     r.deadband = 0.0;
     assert!((r.delta(&[a(0.2)])[0] - 0.2 * b[0]).abs() < 1e-9);
+    let actions = [a(0.2), -0.0, 1.7, -3.1, 1e-8];
+    for (i, (got, act)) in r.delta(&actions).iter().zip(actions).enumerate() {
+        assert_eq!(got.to_bits(), (b[i] * (act as f64).tanh()).to_bits(), "{i}");
+    }
     // A policy whose answers stay inside the band walks bit for bit as the table.
     r.deadband = 0.3;
     let spec = table_walk_spec(&cfg, 0.5, 3.0, 2);
