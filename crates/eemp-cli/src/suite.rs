@@ -79,6 +79,23 @@ pub struct MethodConfig {
 }
 
 impl MethodConfig {
+    /// The controller settings of its own only an EEMP method may have (besides
+    /// `adapt_friction`), each with whether it is set: a policy refuses them, and the table
+    /// EEMP-RL is measured against has none.
+    pub fn eemp_controller_settings(&self) -> [(bool, &'static str); 6] {
+        [
+            (self.initial_friction.is_some(), "initial_friction"),
+            (self.hold_cap_after_slip.is_some(), "hold_cap_after_slip"),
+            (self.hold_raise_fraction.is_some(), "hold_raise_fraction"),
+            (
+                self.ellipse_friction_factor.is_some(),
+                "ellipse_friction_factor",
+            ),
+            (self.free_pairing.is_some(), "free_pairing"),
+            (self.mpc_horizon.is_some(), "mpc_horizon"),
+        ]
+    }
+
     /// The method's estimator: its own or the suite's.
     pub fn estimator<'a>(&'a self, suite: &'a SuiteConfig) -> &'a str {
         self.estimator.as_deref().unwrap_or(&suite.estimator)
@@ -412,18 +429,8 @@ impl SuiteConfig {
                         .map_err(|e| format!("method '{}': {e}", m.name))?;
                 }
                 k @ ("model-free" | "imitation" | "eemp-rl") => {
-                    for (set, key) in [
-                        (m.adapt_friction.is_some(), "adapt_friction"),
-                        (m.initial_friction.is_some(), "initial_friction"),
-                        (m.hold_cap_after_slip.is_some(), "hold_cap_after_slip"),
-                        (m.hold_raise_fraction.is_some(), "hold_raise_fraction"),
-                        (
-                            m.ellipse_friction_factor.is_some(),
-                            "ellipse_friction_factor",
-                        ),
-                        (m.free_pairing.is_some(), "free_pairing"),
-                        (m.mpc_horizon.is_some(), "mpc_horizon"),
-                    ] {
+                    let slip = (m.adapt_friction.is_some(), "adapt_friction");
+                    for (set, key) in std::iter::once(slip).chain(m.eemp_controller_settings()) {
                         if set {
                             return Err(format!(
                                 "method '{}': {key} is for kind eemp (a policy runs with the \

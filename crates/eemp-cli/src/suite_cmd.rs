@@ -781,12 +781,7 @@ fn rl_against_table<'a>(
         m.kind == "eemp"
             && m.gait.as_deref() == Some("free")
             && m.adapt_friction == slip
-            && m.initial_friction.is_none()
-            && m.hold_cap_after_slip.is_none()
-            && m.hold_raise_fraction.is_none()
-            && m.ellipse_friction_factor.is_none()
-            && m.mpc_horizon.is_none()
-            && m.free_pairing.is_none()
+            && m.eemp_controller_settings().iter().all(|(set, _)| !set)
             && m.kf_velocity_jump_mps.is_none()
             && m.kf_leg_outlier_mps.is_none()
     };

@@ -299,23 +299,19 @@ impl ResidualConfig {
     }
 
     /// The parameter correction of an action: Δ = bounds ⊙ shrink(tanh(a)), shrink the
-    /// deadband's soft threshold (a non-finite component counts as 0).
+    /// deadband's soft threshold, the teleop sticks' own deadzone-and-rescale (a non-finite
+    /// component counts as 0).
     pub fn delta(&self, action: &[f32]) -> [f64; 5] {
         let b = self.bounds.to_array();
         std::array::from_fn(|i| {
             let a = action.get(i).copied().unwrap_or(0.0) as f64;
             if a.is_finite() {
-                b[i] * soft_threshold(a.tanh(), self.deadband)
+                b[i] * eemp_core::teleop::deadzone(a.tanh(), self.deadband)
             } else {
                 0.0
             }
         })
     }
-}
-
-/// sign(u)·max(|u| − d, 0)/(1 − d): 0 inside ±d, ±1 at ±1, continuous between.
-fn soft_threshold(u: f64, d: f64) -> f64 {
-    u.signum() * (u.abs() - d).max(0.0) / (1.0 - d)
 }
 
 /// When EEMP-RL decides.
