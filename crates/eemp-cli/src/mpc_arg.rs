@@ -9,12 +9,13 @@ pub struct MpcArgs {
     /// floor's. Default: `MpcConfig`'s 0.6.
     #[arg(long)]
     pub mpc_friction: Option<f64>,
-    /// No slip handling (`eemp_core::slip`, on by default for the trot and the free gait: a
-    /// sliding stance foot lowers the MPC's friction coefficient, a holding one raises it).
+    /// No slip handling (`eemp_core::slip`, on by default for every gait, the walk's up to
+    /// 0.6 m/s: a sliding stance foot lowers the MPC's friction coefficient, a holding one
+    /// raises it).
     #[arg(long, conflicts_with = "adapt_friction")]
     pub no_adapt_friction: bool,
-    /// Slip handling on whatever the gait (the walk's default is off: on, it throws the walk at
-    /// 0.7–1.0 m/s on the flat floor on ground truth; see `SlipConfig::default_for`).
+    /// Slip handling on (the default for every gait since 2026-12-06; the walk's runs up to
+    /// 0.6 m/s, above which its landing feet skid on any floor: `SlipConfig::default_for`).
     #[arg(long)]
     pub adapt_friction: bool,
     /// With slip handling: the friction coefficient it starts from, raised by stance feet that

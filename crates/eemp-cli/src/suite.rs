@@ -41,8 +41,8 @@ pub struct MethodConfig {
     /// method on ground truth beside it on the filter).
     #[serde(default)]
     pub estimator: Option<String>,
-    /// EEMP: slip handling (`eemp_core::slip`); absent: the gait's default (on for the trot and
-    /// the free gait, off for the walk).
+    /// EEMP: slip handling (`eemp_core::slip`); absent: the gait's default (on; the walk's up to
+    /// 0.6 m/s, `SlipConfig::default_for`).
     #[serde(default)]
     pub adapt_friction: Option<bool>,
     /// EEMP with slip handling: the friction coefficient it starts from (absent: the robot

@@ -83,11 +83,18 @@ fn bad_walk_and_stand_input_exits_2_names_the_value_and_writes_nothing() {
             &["slip.hold_raise_fraction", "0.05", "[0.1, 1]"],
         ),
         (
-            &["walk", "--gait", "walk", "--hold-raise-fraction", "0.8"],
+            &[
+                "walk",
+                "--gait",
+                "walk",
+                "--no-adapt-friction",
+                "--hold-raise-fraction",
+                "0.8",
+            ],
             &[
                 "--hold-raise-fraction",
                 "off for this walk",
-                "--adapt-friction",
+                "--no-adapt-friction",
             ],
         ),
     ];

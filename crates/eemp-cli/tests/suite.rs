@@ -235,8 +235,8 @@ fn bad_suite_configs_are_refused_naming_the_value() {
     c.methods[1].free_pairing = Some(FreePairing::UNPAIRED);
     let e = c.validate().unwrap_err();
     assert!(e.contains("free_pairing is for kind eemp"), "{e}");
-    // A method's slip settings reach its walk: out of range, or where slip handling is off (the
-    // walk's default), they are refused.
+    // A method's slip settings reach its walk: out of range, or where slip handling is off
+    // (`adapt_friction = false`), they are refused; the walk's default is on (up to 0.6 m/s).
     let mut c = config();
     c.methods[0].hold_raise_fraction = Some(0.05);
     let e = c.validate().unwrap_err();
@@ -248,10 +248,10 @@ fn bad_suite_configs_are_refused_naming_the_value() {
     c.methods[0].gait = Some("walk".into());
     c.methods[0].table = Some(repo("tables/a1_walk.toml"));
     c.methods[0].hold_raise_fraction = Some(0.8);
-    let e = c.validate().unwrap_err();
-    assert!(e.contains("--adapt-friction"), "{e}");
-    c.methods[0].adapt_friction = Some(true);
     c.validate().unwrap();
+    c.methods[0].adapt_friction = Some(false);
+    let e = c.validate().unwrap_err();
+    assert!(e.contains("--no-adapt-friction"), "{e}");
     let mut c = config();
     c.methods[1].hold_raise_fraction = Some(0.8);
     let e = c.validate().unwrap_err();

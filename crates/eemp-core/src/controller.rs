@@ -174,11 +174,16 @@ impl LocomotionController {
             }
         };
         if self.config.slip.adapt_friction {
+            let reference_speed_mps = plan
+                .body_horizon
+                .first()
+                .map_or(0.0, |r| r.v_world.x.hypot(r.v_world.y));
             let mu = self.friction.update(
                 clock_s,
                 &plan.stance,
                 &self.foot_velocities_world(state),
                 &self.forces_world,
+                reference_speed_mps,
             );
             if mu != self.mpc.friction_coefficient() {
                 self.mpc.set_friction_coefficient(mu);

@@ -1,7 +1,7 @@
 //! The floor's friction from slips: a stance foot that slides says the floor gives less than the
 //! MPC's friction pyramid assumes, so the MPC is told a lower friction coefficient; a foot that
-//! holds a steeper force than the coefficient raises it again. On by default for the trot and
-//! the free gait (issue 22; the walk's, off by default, gates its slides: see
+//! holds a steeper force than the coefficient raises it again. On by default for every gait
+//! (issue 22; the walk's gates its slides and runs up to 0.6 m/s: see
 //! [`SlipConfig::default_for`]; `controller.slip.adapt_friction`, `eemp walk --no-adapt-friction`
 //! turns it off, `--adapt-friction` on). The
 //! measurements below the rule were made with the earlier form (no refractory time, no raise
@@ -137,6 +137,12 @@ pub struct SlipConfig {
     /// CoT within 0.005) but not on the slippery suite's seeds 1–3 (10 of 72 against 8,
     /// `reports/slippery/`): within what seeds move, so not the default.
     pub hold_raise_fraction: f64,
+    /// Slip handling runs only while the planner's reference speed (its trunk reference at the
+    /// first horizon step) is at most this, m/s; above it the MPC keeps its nominal coefficient
+    /// and the detector starts afresh from the nominal when the speed comes back under (0: no
+    /// limit, the trot's and the free gait's default; the walk's 0.6, see
+    /// [`SlipConfig::default_for`]).
+    pub max_speed_mps: f64,
 }
 
 /// The coefficient slip handling starts from when neither the run (`slip.initial_friction`)
@@ -146,6 +152,9 @@ pub struct SlipConfig {
 /// slippery floors and under pushes, seeds 11–16, against 34 with the cap and the nominal start
 /// and 54 with neither; see the module docs).
 pub const CAUTIOUS_START: f64 = 0.3;
+
+/// The walk's [`SlipConfig::max_speed_mps`]: above it its landing feet skid on any floor.
+pub const WALK_MAX_SPEED_MPS: f64 = 0.6;
 
 impl Default for SlipConfig {
     fn default() -> Self {
@@ -165,30 +174,36 @@ impl Default for SlipConfig {
             max_vertical_speed_mps: 0.0,
             require_ground_speed: false,
             hold_raise_fraction: 1.0,
+            max_speed_mps: 0.0,
         }
     }
 }
 
 impl SlipConfig {
-    /// The default for a gait: on for the trot and the free gait, off for the walk. Turned on
-    /// (`--adapt-friction`), the walk's slides must also move over the ground and stay on the
-    /// floor (`require_ground_speed`, `max_vertical_speed_mps` 0.2 m/s). Without those two its
-    /// feet read as sliding on the 0.8 floor at 0.5 m/s (late touchdowns, lift-offs, the
-    /// anchor's own reading): the coefficient sat at its floor and CoT rose 8 % (0.725 against
-    /// 0.673 off; filter, seeds 11–16). With them it is 0.607, and the walk fell in 23 of 108
-    /// runs on the slippery floors and pushes against 26 without them and 34 off. It stays off
-    /// by default because at 0.7 and 1.0 m/s on the flat floor (ground truth, seeds 0–3) the
-    /// walk's landing feet really slide (≈ 1 m/s at touchdown), the coefficient falls to 0.15
-    /// and the walk falls in 4 of 4 runs, against 0 of 4 off. The trot and the free gait keep
-    /// both gates off: each alone raised their falls under pushes on the 0.3 floor (ground
-    /// speed: 53, vertical speed: 50, both: 56 of 72 runs against 44; seeds 11–22), where
-    /// slides of feet that also move vertically are real.
+    /// The default for a gait: on for every gait; the walk's with gates of its own and up to
+    /// 0.6 m/s. The walk's slides must also move over the ground and stay on the floor
+    /// (`require_ground_speed`, `max_vertical_speed_mps` 0.2 m/s). Without those two its feet
+    /// read as sliding on the 0.8 floor at 0.5 m/s (late touchdowns, lift-offs, the anchor's own
+    /// reading): the coefficient sat at its floor and CoT rose 8 % (0.725 against 0.673 off;
+    /// filter, seeds 11–16). With them it is 0.607, and the walk fell in 23 of 108 runs on the
+    /// slippery floors and pushes against 26 without them and 34 off. Above 0.6 m/s
+    /// (`max_speed_mps`) the walk's landing feet really slide on a grippy floor (≈ 1 m/s at
+    /// touchdown at 0.7 and 1.0 m/s), which no gate here tells from a slippery floor: with slip
+    /// handling throughout, the coefficient fell to 0.15 and the walk fell in 4 of 4 runs at
+    /// each speed (flat floor, ground truth, seeds 0–3), against 0 of 4 off; with the limit it
+    /// walks 8 of 8 (CoT 0.587–0.605 against 0.587–0.596 off). (Keeping the detector's
+    /// coefficient but ignoring slides above the limit still fell 3 of 4 at 1.0 m/s.) Until
+    /// 2026-12-06 the walk's default was off. The trot and the free gait keep both gates off:
+    /// each alone raised their falls under pushes on the 0.3 floor (ground speed: 53, vertical
+    /// speed: 50, both: 56 of 72 runs against 44; seeds 11–22), where slides of feet that also
+    /// move vertically are real.
     pub fn default_for(gait: crate::planner::gait::Gait) -> Self {
         let walk = gait == crate::planner::gait::Gait::Walk;
         SlipConfig {
-            adapt_friction: !walk,
+            adapt_friction: true,
             max_vertical_speed_mps: if walk { 0.2 } else { 0.0 },
             require_ground_speed: walk,
+            max_speed_mps: if walk { WALK_MAX_SPEED_MPS } else { 0.0 },
             ..Default::default()
         }
     }
@@ -234,6 +249,7 @@ impl SlipConfig {
             0.1,
             1.0,
         )?;
+        check_range("slip.max_speed_mps", self.max_speed_mps, 0.0, 10.0)?;
         check_range(
             "slip.max_vertical_speed_mps",
             self.max_vertical_speed_mps,
@@ -297,16 +313,34 @@ impl FrictionAdapter {
         self.slips
     }
 
-    /// One control step at `t_s`: the planned stance, each foot's ground velocity (world, m/s)
-    /// and the forces the MPC asks of the feet (world, N). Returns the coefficient.
+    /// Above [`SlipConfig::max_speed_mps`]: the nominal coefficient, and no slip, hold, cap or
+    /// stance carried over to when the speed comes back under the limit.
+    fn rest_at_nominal(&mut self, t_s: f64) {
+        self.current = self.nominal;
+        self.hold_cap = None;
+        self.last_t = Some(t_s);
+        self.last_backoff_s = None;
+        self.stance_since = LegMap::splat(None);
+        self.slipped_this_stance = LegMap::splat(false);
+    }
+
+    /// One control step at `t_s`: the planned stance, each foot's ground velocity (world, m/s),
+    /// the forces the MPC asks of the feet (world, N) and the planner's reference speed (m/s).
+    /// Returns the coefficient.
     pub fn update(
         &mut self,
         t_s: f64,
         stance: &LegMap<bool>,
         foot_velocity_world: &LegMap<Vector3<f64>>,
         forces_world: &LegMap<Vector3<f64>>,
+        reference_speed_mps: f64,
     ) -> f64 {
         if !self.config.adapt_friction {
+            return self.current;
+        }
+        let limit = self.config.max_speed_mps;
+        if limit > 0.0 && reference_speed_mps > limit {
+            self.rest_at_nominal(t_s);
             return self.current;
         }
         let dt = self.last_t.map(|l| (t_s - l).max(0.0)).unwrap_or(0.0);
@@ -417,7 +451,7 @@ mod tests {
         forces[Leg::FrontLeft].z = 5.0;
         for k in 0..1000 {
             assert_eq!(
-                a.update(k as f64 * 1e-3, &LegMap::splat(true), &v, &forces),
+                a.update(k as f64 * 1e-3, &LegMap::splat(true), &v, &forces, 0.0),
                 0.6
             );
         }
@@ -432,14 +466,26 @@ mod tests {
         let v = LegMap::splat(Vector3::new(0.0, 0.5, 0.0));
         for k in 0..200 {
             assert_eq!(
-                a.update(k as f64 * 1e-3, &LegMap::splat(true), &v, &loaded()),
+                a.update(k as f64 * 1e-3, &LegMap::splat(true), &v, &loaded(), 0.0),
                 0.6
             );
         }
         // One of them faster than the rest by more than the threshold is a slip.
         let mut w = v;
         w[Leg::RearRight].y = 0.65;
-        assert!(a.update(0.3, &LegMap::splat(true), &w, &loaded()) < 0.6);
+        assert!(a.update(0.3, &LegMap::splat(true), &w, &loaded(), 0.0) < 0.6);
+    }
+
+    /// Front right slides flat over the ground while front left holds; the rear legs carry
+    /// nothing: foot velocities and forces.
+    fn front_right_slides_flat() -> (LegMap<Vector3<f64>>, LegMap<Vector3<f64>>) {
+        let mut v = LegMap::splat(Vector3::new(5.0, 5.0, 0.0));
+        v[Leg::FrontRight] = Vector3::new(0.3, 0.0, 0.05);
+        v[Leg::FrontLeft] = Vector3::zeros();
+        let mut forces = loaded();
+        forces[Leg::RearLeft].z = 0.0;
+        forces[Leg::RearRight].z = 0.0;
+        (v, forces)
     }
 
     #[test]
@@ -447,7 +493,7 @@ mod tests {
         // Readings from the walk at 0.5 m/s on the 0.8 floor (filter): each slid under the
         // trot's rule, none under the walk's.
         use crate::planner::gait::Gait;
-        assert!(!SlipConfig::default_for(Gait::Walk).adapt_friction);
+        assert!(SlipConfig::default_for(Gait::Walk).adapt_friction);
         // The gait's rule turned on, without the cautious start and the cap.
         let turned_on = |gait| SlipConfig {
             adapt_friction: true,
@@ -474,21 +520,55 @@ mod tests {
             let stance = LegMap::splat(true);
             for (config, slips) in [(&walk, 0), (&trot, 1)] {
                 let mut a = FrictionAdapter::new(config.clone(), 0.6).unwrap();
-                a.update(0.0, &stance, &v, &forces);
-                a.update(0.05, &stance, &v, &forces);
+                a.update(0.0, &stance, &v, &forces, 0.0);
+                a.update(0.05, &stance, &v, &forces, 0.0);
                 assert_eq!(a.slips(), slips, "{foot:?} against {anchor_v:?}");
             }
         }
         // A foot that slides flat over the ground slips under both.
-        let mut v = LegMap::splat(Vector3::new(5.0, 5.0, 0.0));
-        v[Leg::FrontRight] = Vector3::new(0.3, 0.0, 0.05);
-        v[Leg::FrontLeft] = Vector3::zeros();
-        let mut forces = loaded();
-        forces[Leg::RearLeft].z = 0.0;
-        forces[Leg::RearRight].z = 0.0;
+        let (v, forces) = front_right_slides_flat();
         let mut a = FrictionAdapter::new(walk, 0.6).unwrap();
-        a.update(0.0, &LegMap::splat(true), &v, &forces);
-        assert!((a.update(0.05, &LegMap::splat(true), &v, &forces) - 0.42).abs() < 1e-12);
+        a.update(0.0, &LegMap::splat(true), &v, &forces, 0.0);
+        assert!((a.update(0.05, &LegMap::splat(true), &v, &forces, 0.0) - 0.42).abs() < 1e-12);
+    }
+
+    #[test]
+    fn the_walks_slip_handling_rests_at_the_nominal_above_its_speed() {
+        use crate::planner::gait::Gait;
+        let walk = SlipConfig {
+            initial_friction: None,
+            hold_cap_after_slip: 0.0,
+            ..SlipConfig::default_for(Gait::Walk)
+        };
+        assert_eq!(walk.max_speed_mps, WALK_MAX_SPEED_MPS);
+        assert_eq!(SlipConfig::default_for(Gait::Trot).max_speed_mps, 0.0);
+        let (v, forces) = front_right_slides_flat();
+        let stance = LegMap::splat(true);
+        // Above 0.6 m/s the same slide is no slip: the nominal stays.
+        let mut a = FrictionAdapter::new(walk.clone(), 0.6).unwrap();
+        a.update(0.0, &stance, &v, &forces, 0.7);
+        assert_eq!(a.update(0.05, &stance, &v, &forces, 0.7), 0.6);
+        assert_eq!(a.slips(), 0);
+        // At 0.5 m/s it is one (0.6 × 0.7).
+        let mut b = FrictionAdapter::new(walk, 0.6).unwrap();
+        b.update(0.0, &stance, &v, &forces, 0.5);
+        assert!((b.update(0.05, &stance, &v, &forces, 0.5) - 0.42).abs() < 1e-12);
+        // Crossing the limit brings the nominal back at once; under it again the detector
+        // starts afresh: the same stance's slide counts once more after settling.
+        assert_eq!(b.update(0.06, &stance, &v, &forces, 0.61), 0.6);
+        assert_eq!(b.update(0.07, &stance, &v, &forces, 0.5), 0.6);
+        assert!((b.update(0.12, &stance, &v, &forces, 0.5) - 0.42).abs() < 1e-12);
+        assert_eq!(b.slips(), 2);
+        // The limit is validated.
+        let bad = SlipConfig {
+            max_speed_mps: -1.0,
+            ..SlipConfig::default()
+        };
+        assert!(bad
+            .validate()
+            .unwrap_err()
+            .to_string()
+            .contains("slip.max_speed_mps"));
     }
 
     #[test]
@@ -498,15 +578,15 @@ mod tests {
         let stance = LegMap::from_fn(|l| matches!(l, Leg::FrontLeft | Leg::RearRight));
         let mut v = still();
         v[Leg::RearRight] = Vector3::new(0.3, 0.0, 0.0);
-        a.update(0.0, &stance, &v, &loaded());
-        let mu = a.update(0.05, &stance, &v, &loaded());
+        a.update(0.0, &stance, &v, &loaded(), 0.0);
+        let mu = a.update(0.05, &stance, &v, &loaded(), 0.0);
         assert_eq!(a.slips(), 1);
         assert!((mu - 0.42).abs() < 1e-12, "{mu}");
         // A single loaded foot cannot tell a slide from the robot moving: no slip.
         let mut b = FrictionAdapter::new(on(), 0.6).unwrap();
         let one = LegMap::from_fn(|l| l == Leg::RearRight);
-        b.update(0.0, &one, &v, &loaded());
-        assert_eq!(b.update(0.05, &one, &v, &loaded()), 0.6);
+        b.update(0.0, &one, &v, &loaded(), 0.0);
+        assert_eq!(b.update(0.05, &one, &v, &loaded(), 0.0), 0.6);
     }
 
     #[test]
@@ -518,33 +598,33 @@ mod tests {
         let mut a = FrictionAdapter::new(refractory, 0.6).unwrap();
         let stance = LegMap::splat(true);
         let mut v = still();
-        a.update(0.0, &stance, &v, &loaded());
+        a.update(0.0, &stance, &v, &loaded(), 0.0);
         // A slide right after touchdown (within settle_s) is a transient, not a slip.
         v[Leg::FrontRight] = Vector3::new(0.06, 0.07, 0.0); // below the threshold
-        assert_eq!(a.update(0.02, &stance, &v, &loaded()), 0.6);
+        assert_eq!(a.update(0.02, &stance, &v, &loaded(), 0.0), 0.6);
         v[Leg::FrontRight] = Vector3::new(0.3, 0.0, 0.0);
-        assert_eq!(a.update(0.03, &stance, &v, &loaded()), 0.6);
+        assert_eq!(a.update(0.03, &stance, &v, &loaded(), 0.0), 0.6);
         // Later in the stance it is: 0.7 × 0.6 = 0.42.
-        let mu = a.update(0.05, &stance, &v, &loaded());
+        let mu = a.update(0.05, &stance, &v, &loaded(), 0.0);
         assert!((mu - 0.42).abs() < 1e-12, "{mu}");
         // The same stance does not count twice.
-        assert!((a.update(0.06, &stance, &v, &loaded()) - (0.42 + 0.02 * 0.01)).abs() < 1e-12);
+        assert!((a.update(0.06, &stance, &v, &loaded(), 0.0) - (0.42 + 0.02 * 0.01)).abs() < 1e-12);
         assert_eq!(a.slips(), 1);
         // A second leg slipping within refractory_s of the backoff is the same event: counted,
         // the coefficient unchanged but for the recovery.
         v[Leg::RearLeft] = Vector3::new(0.0, -0.2, 0.0);
-        let mu = a.update(0.07, &stance, &v, &loaded());
+        let mu = a.update(0.07, &stance, &v, &loaded(), 0.0);
         assert!((mu - (0.42 + 0.02 * 0.02)).abs() < 1e-12, "{mu}");
         assert_eq!(a.slips(), 2);
         // A third after it is a new backoff: 0.7 × 0.427.
         v[Leg::RearRight] = Vector3::new(0.0, 0.2, 0.0);
-        let mu = a.update(0.4, &stance, &v, &loaded());
+        let mu = a.update(0.4, &stance, &v, &loaded(), 0.0);
         assert!((mu - 0.7 * (0.42 + 0.02 * 0.35)).abs() < 1e-12, "{mu}");
         // Without slips it climbs back at 0.02 per second, up to the nominal.
         let v = still();
-        let mu2 = a.update(5.4, &stance, &v, &loaded());
+        let mu2 = a.update(5.4, &stance, &v, &loaded(), 0.0);
         assert!((mu2 - (mu + 0.02 * 5.0)).abs() < 1e-9, "{mu2}");
-        assert_eq!(a.update(100.0, &stance, &v, &loaded()), 0.6);
+        assert_eq!(a.update(100.0, &stance, &v, &loaded(), 0.0), 0.6);
     }
 
     #[test]
@@ -552,17 +632,17 @@ mod tests {
         let mut a = FrictionAdapter::new(on(), 0.6).unwrap();
         let stance = LegMap::splat(true);
         let mut v = still();
-        a.update(0.0, &stance, &v, &loaded());
+        a.update(0.0, &stance, &v, &loaded(), 0.0);
         v[Leg::FrontRight] = Vector3::new(0.3, 0.0, 0.0);
-        let low = a.update(0.05, &stance, &v, &loaded());
+        let low = a.update(0.05, &stance, &v, &loaded(), 0.0);
         assert!((low - 0.42).abs() < 1e-12);
         // The next stance: every foot planted, the MPC asking one of them for 0.5 of its load
         // sideways (a push being caught), and it holds: the floor gives at least 0.5.
-        a.update(0.1, &LegMap::splat(false), &still(), &loaded());
-        a.update(0.11, &stance, &still(), &loaded());
+        a.update(0.1, &LegMap::splat(false), &still(), &loaded(), 0.0);
+        a.update(0.11, &stance, &still(), &loaded(), 0.0);
         let mut f = loaded();
         f[Leg::RearLeft] = Vector3::new(12.0, 16.0, 40.0);
-        let mu = a.update(0.2, &stance, &still(), &f);
+        let mu = a.update(0.2, &stance, &still(), &f, 0.0);
         assert!((mu - 0.5).abs() < 1e-12, "{mu}");
         // Never above the nominal; a foot moving over the ground is no evidence.
         f[Leg::RearLeft] = Vector3::new(40.0, 0.0, 40.0);
@@ -571,8 +651,8 @@ mod tests {
         moving[Leg::FrontLeft] = Vector3::new(0.0, 0.15, 0.0);
         moving[Leg::FrontRight] = Vector3::new(0.0, 0.15, 0.0);
         moving[Leg::RearRight] = Vector3::new(0.0, 0.15, 0.0);
-        assert!((a.update(0.21, &stance, &moving, &f) - (0.5 + 0.02 * 0.01)).abs() < 1e-9);
-        assert_eq!(a.update(0.22, &stance, &still(), &f), 0.6);
+        assert!((a.update(0.21, &stance, &moving, &f, 0.0) - (0.5 + 0.02 * 0.01)).abs() < 1e-9);
+        assert_eq!(a.update(0.22, &stance, &still(), &f, 0.0), 0.6);
     }
 
     #[test]
@@ -590,8 +670,8 @@ mod tests {
                 ..on()
             };
             let mut a = FrictionAdapter::new(config, 0.6).unwrap();
-            a.update(0.0, &stance, &still(), &f);
-            let mu = a.update(0.1, &stance, &still(), &f);
+            a.update(0.0, &stance, &still(), &f, 0.0);
+            let mu = a.update(0.1, &stance, &still(), &f, 0.0);
             assert!((mu - expected).abs() < 1e-12, "{start}: {mu}");
         }
     }
@@ -607,29 +687,29 @@ mod tests {
         };
         let stance = LegMap::splat(true);
         let mut a = FrictionAdapter::new(capped, 0.6).unwrap();
-        a.update(0.0, &stance, &still(), &loaded());
+        a.update(0.0, &stance, &still(), &loaded(), 0.0);
         let mut v = still();
         v[Leg::FrontRight] = Vector3::new(0.3, 0.0, 0.0);
         // The slip at 0.6: the cap is 0.95 × 0.6 = 0.57, the coefficient 0.42.
-        assert!((a.update(0.05, &stance, &v, &loaded()) - 0.42).abs() < 1e-12);
+        assert!((a.update(0.05, &stance, &v, &loaded(), 0.0) - 0.42).abs() < 1e-12);
         // A new stance; a foot holds while asked for the pyramid's corner, √2 × 0.42 = 0.59.
-        a.update(0.06, &LegMap::splat(false), &still(), &loaded());
-        a.update(0.07, &stance, &still(), &loaded());
+        a.update(0.06, &LegMap::splat(false), &still(), &loaded(), 0.0);
+        a.update(0.07, &stance, &still(), &loaded(), 0.0);
         let mut f = loaded();
         f[Leg::RearLeft] = Vector3::new(16.8, 16.8, 40.0);
-        let mu = a.update(0.2, &stance, &still(), &f);
+        let mu = a.update(0.2, &stance, &still(), &f, 0.0);
         let cap = 0.57 + 0.05 * 0.15;
         assert!((mu - cap).abs() < 1e-9, "{mu} against the cap {cap}");
         // The cap recovers at its own rate; a hold then reaches the asked ratio again.
-        let mu = a.update(0.7, &stance, &still(), &f);
+        let mu = a.update(0.7, &stance, &still(), &f, 0.0);
         assert!((mu - 0.594).abs() < 1e-3, "{mu}");
         // Without the cap (0) the same hold lifts it to the ratio at once.
         let mut b = FrictionAdapter::new(on(), 0.6).unwrap();
-        b.update(0.0, &stance, &still(), &loaded());
-        b.update(0.05, &stance, &v, &loaded());
-        b.update(0.06, &LegMap::splat(false), &still(), &loaded());
-        b.update(0.07, &stance, &still(), &loaded());
-        assert!((b.update(0.2, &stance, &still(), &f) - 0.594).abs() < 1e-3);
+        b.update(0.0, &stance, &still(), &loaded(), 0.0);
+        b.update(0.05, &stance, &v, &loaded(), 0.0);
+        b.update(0.06, &LegMap::splat(false), &still(), &loaded(), 0.0);
+        b.update(0.07, &stance, &still(), &loaded(), 0.0);
+        assert!((b.update(0.2, &stance, &still(), &f, 0.0) - 0.594).abs() < 1e-3);
     }
 
     #[test]
@@ -641,19 +721,19 @@ mod tests {
         };
         let mut a = FrictionAdapter::new(config, 0.6).unwrap();
         let stance = LegMap::splat(true);
-        a.update(0.0, &stance, &still(), &loaded());
+        a.update(0.0, &stance, &still(), &loaded(), 0.0);
         let mut v = still();
         v[Leg::FrontRight] = Vector3::new(0.3, 0.0, 0.0);
-        a.update(0.05, &stance, &v, &loaded()); // 0.6 → 0.42, cap 0.57
+        a.update(0.05, &stance, &v, &loaded(), 0.0); // 0.6 → 0.42, cap 0.57
         v[Leg::RearLeft] = Vector3::new(0.0, 0.3, 0.0);
-        a.update(0.06, &stance, &v, &loaded()); // the same event: neither moves
+        a.update(0.06, &stance, &v, &loaded(), 0.0); // the same event: neither moves
         assert_eq!(a.slips(), 2);
         // A new stance whose foot holds 0.56 of its load: raised to it, not to 0.95 × 0.42.
-        a.update(0.07, &LegMap::splat(false), &still(), &loaded());
-        a.update(0.08, &stance, &still(), &loaded());
+        a.update(0.07, &LegMap::splat(false), &still(), &loaded(), 0.0);
+        a.update(0.08, &stance, &still(), &loaded(), 0.0);
         let mut f = loaded();
         f[Leg::FrontLeft] = Vector3::new(22.4, 0.0, 40.0);
-        let mu = a.update(0.2, &stance, &still(), &f);
+        let mu = a.update(0.2, &stance, &still(), &f, 0.0);
         assert!((mu - 0.56).abs() < 1e-9, "{mu}");
     }
 
@@ -666,11 +746,11 @@ mod tests {
         let mut a = FrictionAdapter::new(cautious.clone(), 0.6).unwrap();
         assert_eq!(a.friction_coefficient(), 0.3);
         let stance = LegMap::splat(true);
-        a.update(0.0, &stance, &still(), &loaded());
+        a.update(0.0, &stance, &still(), &loaded(), 0.0);
         // Past settle_s, a planted foot holding 0.45 of its load sideways: the floor gives that.
         let mut f = loaded();
         f[Leg::FrontLeft] = Vector3::new(18.0, 0.0, 40.0);
-        let mu = a.update(0.1, &stance, &still(), &f);
+        let mu = a.update(0.1, &stance, &still(), &f, 0.0);
         assert!((mu - 0.45).abs() < 1e-12, "{mu}");
         // A start above the nominal is the nominal; with slip handling off it means nothing.
         let start = |c: SlipConfig| FrictionAdapter::new(c, 0.6).unwrap().friction_coefficient();
@@ -701,10 +781,10 @@ mod tests {
         let mut t = 0.0;
         for _ in 0..20 {
             // Lift and put down every leg: a new stance, a new slip of the front right foot.
-            a.update(t, &LegMap::splat(false), &v, &loaded());
-            a.update(t + 0.001, &LegMap::splat(true), &v, &loaded());
+            a.update(t, &LegMap::splat(false), &v, &loaded(), 0.0);
+            a.update(t + 0.001, &LegMap::splat(true), &v, &loaded(), 0.0);
             t += 0.1;
-            a.update(t, &LegMap::splat(true), &v, &loaded());
+            a.update(t, &LegMap::splat(true), &v, &loaded(), 0.0);
         }
         assert_eq!(a.slips(), 20);
         assert!((a.friction_coefficient() - 0.15).abs() < 1e-12);
@@ -716,7 +796,10 @@ mod tests {
             0.6,
         )
         .unwrap();
-        assert_eq!(off.update(1.0, &LegMap::splat(true), &v, &loaded()), 0.6);
+        assert_eq!(
+            off.update(1.0, &LegMap::splat(true), &v, &loaded(), 0.0),
+            0.6
+        );
         assert!(SlipConfig {
             backoff: 0.0,
             ..Default::default()

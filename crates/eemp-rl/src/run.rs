@@ -445,17 +445,12 @@ impl WalkDescription {
         if let Some(k) = self.hold_raise_fraction {
             spec.controller.slip.hold_raise_fraction = k;
         }
-        // Settings of slip handling where it is off would be silently ignored (the walk's
-        // default is off).
+        // Settings of slip handling where it is off would be silently ignored.
         if !spec.controller.slip.adapt_friction && self.sets_slip_handling() {
             return Err(format!(
                 "--initial-friction, --hold-cap-after-slip and --hold-raise-fraction set slip \
-                 handling, which is off for this walk (--gait {gait}{}): add --adapt-friction",
-                if self.adapt_friction == Some(false) {
-                    ", --no-adapt-friction"
-                } else {
-                    ""
-                }
+                 handling, which is off for this walk (--gait {gait}, --no-adapt-friction): \
+                 drop one or the other"
             ));
         }
         spec.seed = self.sensing.seed;

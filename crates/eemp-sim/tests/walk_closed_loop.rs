@@ -330,6 +330,28 @@ fn on_a_floor_less_grippy_than_the_mpc_assumes_slips_lower_its_friction_and_the_
 }
 
 #[test]
+fn the_walks_slip_handling_rests_at_the_nominal_coefficient_above_0_6_m_per_s() {
+    // The walk with its table at 0.8 m/s: the reference ramps at 0.5 m/s² from 0.5 s, so it is
+    // over 0.6 m/s from 1.7 s. Its landing feet skid there on any floor (issue 22), and the
+    // default (on, up to 0.6 m/s) gives the MPC its nominal 0.6 by the end.
+    let tables = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tables");
+    let mut s = spec(Gait::Walk, 0.8, 4.0, PlannerParams::default());
+    s.params_table = Some(
+        eemp_core::planner::params_table::ParamsTable::load(&tables.join("a1_walk.toml")).unwrap(),
+    );
+    s.seed = 1;
+    assert!(s.controller.slip.adapt_friction);
+    let limited = run_walk(&RobotConfig::a1(), &s, |_| {}).unwrap();
+    assert!(!limited.stats.fell, "fell at {:?}", limited.stats.fell_at_s);
+    assert_eq!(limited.stats.mpc_friction_last, Some(0.6));
+    // Without the limit the coefficient is still the detector's (it starts cautious, at 0.3).
+    s.controller.slip.max_speed_mps = 0.0;
+    let unlimited = run_walk(&RobotConfig::a1(), &s, |_| {}).unwrap();
+    let mu = unlimited.stats.mpc_friction_last.unwrap();
+    assert!(mu < 0.6, "the test cannot fail: {mu}");
+}
+
+#[test]
 fn the_free_gait_pairs_its_swings_and_walks_a_floor_of_friction_0_3_from_rest() {
     let run = |pairing: FreePairing, seed: u64| {
         // Without slip handling (on by default since issue 22, and enough on its own for
