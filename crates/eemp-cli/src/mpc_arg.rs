@@ -9,13 +9,14 @@ pub struct MpcArgs {
     /// floor's. Default: `MpcConfig`'s 0.6.
     #[arg(long)]
     pub mpc_friction: Option<f64>,
-    /// No slip handling (`eemp_core::slip`, on by default for every gait, the walk's up to
+    /// No slip handling (`eemp_core::slip`, on by default for every gait, the walk's below
     /// 0.6 m/s: a sliding stance foot lowers the MPC's friction coefficient, a holding one
     /// raises it).
     #[arg(long, conflicts_with = "adapt_friction")]
     pub no_adapt_friction: bool,
-    /// Slip handling on (the default for every gait since 2026-12-06; the walk's runs up to
-    /// 0.6 m/s, above which its landing feet skid on any floor: `SlipConfig::default_for`).
+    /// Slip handling on (the default for every gait since 2026-12-06, so this only restates
+    /// it; the walk's runs below 0.6 m/s, above which its landing feet skid on any floor:
+    /// `SlipConfig::default_for`, `--slip-max-speed`).
     #[arg(long)]
     pub adapt_friction: bool,
     /// With slip handling: the friction coefficient it starts from, raised by stance feet that
@@ -31,6 +32,11 @@ pub struct MpcArgs {
     /// tangential/normal ratio the MPC asked of it (`slip.hold_raise_fraction`, 0.1–1; default 1).
     #[arg(long)]
     pub hold_raise_fraction: Option<f64>,
+    /// With slip handling: the planner's reference speed above which it rests at the nominal
+    /// coefficient, m/s (`slip.max_speed_mps`, 0–10; 0: no limit; default: the gait's, the
+    /// walk's 0.6, none for the trot and the free gait).
+    #[arg(long)]
+    pub slip_max_speed: Option<f64>,
     /// The placement ellipses stay within the friction cone seen from the hip: r ≤ factor · μ̂
     /// · X_z, μ̂ the slip detector's coefficient (`planner.ellipse_friction_factor`; 0: off).
     #[arg(long, default_value_t = eemp_core::planner::PlannerConfig::default().ellipse_friction_factor)]

@@ -41,7 +41,7 @@ pub struct MethodConfig {
     /// method on ground truth beside it on the filter).
     #[serde(default)]
     pub estimator: Option<String>,
-    /// EEMP: slip handling (`eemp_core::slip`); absent: the gait's default (on; the walk's up to
+    /// EEMP: slip handling (`eemp_core::slip`); absent: the gait's default (on; the walk's below
     /// 0.6 m/s, `SlipConfig::default_for`).
     #[serde(default)]
     pub adapt_friction: Option<bool>,
@@ -57,6 +57,10 @@ pub struct MethodConfig {
     /// (`slip.hold_raise_fraction`; absent: its default 1).
     #[serde(default)]
     pub hold_raise_fraction: Option<f64>,
+    /// EEMP with slip handling: the reference speed above which it rests at the nominal
+    /// coefficient (`slip.max_speed_mps`; absent: the gait's, the walk's 0.6; 0: no limit).
+    #[serde(default)]
+    pub slip_max_speed_mps: Option<f64>,
     /// EEMP: the ellipses' cap by the slip detector's coefficient
     /// (`planner.ellipse_friction_factor`; absent: its default 1; 0: off).
     #[serde(default)]
@@ -82,11 +86,12 @@ impl MethodConfig {
     /// The controller settings of its own only an EEMP method may have (besides
     /// `adapt_friction`), each with whether it is set: a policy refuses them, and the table
     /// EEMP-RL is measured against has none.
-    pub fn eemp_controller_settings(&self) -> [(bool, &'static str); 6] {
+    pub fn eemp_controller_settings(&self) -> [(bool, &'static str); 7] {
         [
             (self.initial_friction.is_some(), "initial_friction"),
             (self.hold_cap_after_slip.is_some(), "hold_cap_after_slip"),
             (self.hold_raise_fraction.is_some(), "hold_raise_fraction"),
+            (self.slip_max_speed_mps.is_some(), "slip_max_speed_mps"),
             (
                 self.ellipse_friction_factor.is_some(),
                 "ellipse_friction_factor",
@@ -146,6 +151,7 @@ impl MethodConfig {
             d.initial_friction = self.initial_friction;
             d.hold_cap_after_slip = self.hold_cap_after_slip;
             d.hold_raise_fraction = self.hold_raise_fraction;
+            d.slip_max_speed_mps = self.slip_max_speed_mps;
             d.mpc_horizon = self.mpc_horizon;
             if let Some(f) = self.ellipse_friction_factor {
                 d.ellipse_friction_factor = f;

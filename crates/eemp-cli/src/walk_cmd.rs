@@ -118,6 +118,7 @@ impl WalkArgs {
             initial_friction: self.mpc.initial_friction,
             hold_cap_after_slip: self.mpc.hold_cap_after_slip,
             hold_raise_fraction: self.mpc.hold_raise_fraction,
+            slip_max_speed_mps: self.mpc.slip_max_speed,
             free_pair_tolerance: self.free.free_pair_tolerance,
             free_support_margin_m: self.free.free_support_margin,
             free_support_check: None,

@@ -46,7 +46,7 @@ fn bad_walk_and_stand_input_exits_2_names_the_value_and_writes_nothing() {
         malformed.to_str().unwrap(),
     );
     // (arguments, what the message must contain)
-    let cases: [(&[&str], &[&str]); 12] = [
+    let cases: [(&[&str], &[&str]); 13] = [
         (
             &["walk", "--gait", "gallop"],
             &["gallop", "trot, walk, free"],
@@ -81,6 +81,10 @@ fn bad_walk_and_stand_input_exits_2_names_the_value_and_writes_nothing() {
         (
             &["walk", "--hold-raise-fraction", "0.05"],
             &["slip.hold_raise_fraction", "0.05", "[0.1, 1]"],
+        ),
+        (
+            &["walk", "--slip-max-speed", "-1"],
+            &["slip.max_speed_mps", "-1", "[0, 10]"],
         ),
         (
             &[

@@ -30,6 +30,7 @@ fn config() -> SuiteConfig {
                 initial_friction: None,
                 hold_cap_after_slip: None,
                 hold_raise_fraction: None,
+                slip_max_speed_mps: None,
                 ellipse_friction_factor: None,
                 kf_velocity_jump_mps: None,
                 kf_leg_outlier_mps: None,
@@ -47,6 +48,7 @@ fn config() -> SuiteConfig {
                 initial_friction: None,
                 hold_cap_after_slip: None,
                 hold_raise_fraction: None,
+                slip_max_speed_mps: None,
                 ellipse_friction_factor: None,
                 kf_velocity_jump_mps: None,
                 kf_leg_outlier_mps: None,
@@ -236,7 +238,7 @@ fn bad_suite_configs_are_refused_naming_the_value() {
     let e = c.validate().unwrap_err();
     assert!(e.contains("free_pairing is for kind eemp"), "{e}");
     // A method's slip settings reach its walk: out of range, or where slip handling is off
-    // (`adapt_friction = false`), they are refused; the walk's default is on (up to 0.6 m/s).
+    // (`adapt_friction = false`), they are refused; the walk's default is on (below 0.6 m/s).
     let mut c = config();
     c.methods[0].hold_raise_fraction = Some(0.05);
     let e = c.validate().unwrap_err();

@@ -202,6 +202,10 @@ pub struct WalkDescription {
     /// With slip handling: the fraction of the asked ratio a hold raises the coefficient to
     /// (`slip.hold_raise_fraction`, 0.1–1; default 1).
     pub hold_raise_fraction: Option<f64>,
+    /// With slip handling: the planner's reference speed above which it rests at the nominal
+    /// coefficient, m/s (`slip.max_speed_mps`; 0: no limit; default: the gait's, the walk's
+    /// 0.6).
+    pub slip_max_speed_mps: Option<f64>,
     pub free_pair_tolerance: Option<f64>,
     pub free_support_margin_m: Option<f64>,
     /// Whether the free gait's support rule applies (`FreePairing::support_check`).
@@ -244,6 +248,7 @@ impl Default for WalkDescription {
             initial_friction: None,
             hold_cap_after_slip: None,
             hold_raise_fraction: None,
+            slip_max_speed_mps: None,
             free_pair_tolerance: None,
             free_support_margin_m: None,
             free_support_check: None,
@@ -278,6 +283,7 @@ impl WalkDescription {
         self.initial_friction.is_some()
             || self.hold_cap_after_slip.is_some()
             || self.hold_raise_fraction.is_some()
+            || self.slip_max_speed_mps.is_some()
     }
 
     /// Validates everything and assembles the run; an error names the option and its range.
@@ -445,12 +451,16 @@ impl WalkDescription {
         if let Some(k) = self.hold_raise_fraction {
             spec.controller.slip.hold_raise_fraction = k;
         }
+        if let Some(v) = self.slip_max_speed_mps {
+            spec.controller.slip.max_speed_mps = v;
+        }
         // Settings of slip handling where it is off would be silently ignored.
         if !spec.controller.slip.adapt_friction && self.sets_slip_handling() {
             return Err(format!(
-                "--initial-friction, --hold-cap-after-slip and --hold-raise-fraction set slip \
-                 handling, which is off for this walk (--gait {gait}, --no-adapt-friction): \
-                 drop one or the other"
+                "--initial-friction, --hold-cap-after-slip, --hold-raise-fraction and \
+                 --slip-max-speed set slip handling, which is off for this walk (--gait {gait}, \
+                 --no-adapt-friction or a suite method's adapt_friction = false): drop one or \
+                 the other"
             ));
         }
         spec.seed = self.sensing.seed;

@@ -333,7 +333,7 @@ fn on_a_floor_less_grippy_than_the_mpc_assumes_slips_lower_its_friction_and_the_
 fn the_walks_slip_handling_rests_at_the_nominal_coefficient_above_0_6_m_per_s() {
     // The walk with its table at 0.8 m/s: the reference ramps at 0.5 m/s² from 0.5 s, so it is
     // over 0.6 m/s from 1.7 s. Its landing feet skid there on any floor (issue 22), and the
-    // default (on, up to 0.6 m/s) gives the MPC its nominal 0.6 by the end.
+    // default (on, below 0.6 m/s) gives the MPC its nominal 0.6 by the end.
     let tables = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tables");
     let mut s = spec(Gait::Walk, 0.8, 4.0, PlannerParams::default());
     s.params_table = Some(
