@@ -315,8 +315,8 @@ impl FrictionAdapter {
         self.slips
     }
 
-    /// Above [`SlipConfig::max_speed_mps`]: the nominal coefficient, and no slip, hold, cap or
-    /// stance carried over to when the speed comes back under the limit.
+    /// At or above [`SlipConfig::max_speed_mps`]: the nominal coefficient, and no slip, hold,
+    /// cap or stance carried over to when the speed comes back under the limit.
     fn rest_at_nominal(&mut self, t_s: f64) {
         self.current = self.nominal;
         self.hold_cap = None;

@@ -5,9 +5,9 @@
 //! CMA-ES cannot search a 128×128 network's ≈ 20 000 weights (its covariance is n²), so its
 //! policy is the residual's open-loop form: one bounded correction per entry of the table,
 //! x ∈ ℝ^(5 × entries), and at each decision the action is the slice of x of the entry nearest
-//! to the commanded speed (Δ = bounds ⊙ tanh(x), the PPO policy's own squashing without a deadband, which CMA-ES
-//! refuses). With the
-//! table's nearest-entry look-up this is exactly a re-tuned table, which is what the run writes
+//! to the commanded speed (Δ = bounds ⊙ tanh(x), the PPO policy's own squashing without a
+//! deadband, which CMA-ES refuses). With the table's nearest-entry look-up this is exactly a
+//! re-tuned table, which is what the run writes
 //! (`table.toml`, usable as `eemp walk --gait free --params-table …`).
 //!
 //! Fitness: a candidate's mean undiscounted return over `episodes_per_candidate` episodes of the

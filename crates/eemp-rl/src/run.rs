@@ -278,12 +278,18 @@ pub struct BuiltWalk {
 }
 
 impl WalkDescription {
-    /// Whether the run sets any of slip handling's own settings (not whether it is on).
-    fn sets_slip_handling(&self) -> bool {
-        self.initial_friction.is_some()
-            || self.hold_cap_after_slip.is_some()
-            || self.hold_raise_fraction.is_some()
-            || self.slip_max_speed_mps.is_some()
+    /// The options of slip handling's own settings the run sets (not whether it is on), by
+    /// their flags: the one list both refusals name.
+    fn slip_settings_set(&self) -> Vec<&'static str> {
+        [
+            ("--initial-friction", self.initial_friction.is_some()),
+            ("--hold-cap-after-slip", self.hold_cap_after_slip.is_some()),
+            ("--hold-raise-fraction", self.hold_raise_fraction.is_some()),
+            ("--slip-max-speed", self.slip_max_speed_mps.is_some()),
+        ]
+        .into_iter()
+        .filter_map(|(flag, set)| set.then_some(flag))
+        .collect()
     }
 
     /// Validates everything and assembles the run; an error names the option and its range.
@@ -323,12 +329,20 @@ impl WalkDescription {
                 self.controller
             ));
         }
-        if (self.adapt_friction.is_some() || self.sets_slip_handling()) && !is_eemp {
+        let slip_settings = self.slip_settings_set();
+        if (self.adapt_friction.is_some() || !slip_settings.is_empty()) && !is_eemp {
+            let switch = self.adapt_friction.map(|on| match on {
+                true => "--adapt-friction",
+                false => "--no-adapt-friction",
+            });
             return Err(format!(
-                "--no-adapt-friction, --adapt-friction, --initial-friction, \
-                 --hold-cap-after-slip and --hold-raise-fraction are for \
-                 --controller eemp, not {} (a policy runs with the controller it was trained \
-                 with)",
+                "{}: slip handling is for --controller eemp, not {} (a policy runs with the \
+                 controller it was trained with)",
+                switch
+                    .into_iter()
+                    .chain(slip_settings.iter().copied())
+                    .collect::<Vec<_>>()
+                    .join(", "),
                 self.controller
             ));
         }
@@ -455,12 +469,11 @@ impl WalkDescription {
             spec.controller.slip.max_speed_mps = v;
         }
         // Settings of slip handling where it is off would be silently ignored.
-        if !spec.controller.slip.adapt_friction && self.sets_slip_handling() {
+        if !spec.controller.slip.adapt_friction && !slip_settings.is_empty() {
             return Err(format!(
-                "--initial-friction, --hold-cap-after-slip, --hold-raise-fraction and \
-                 --slip-max-speed set slip handling, which is off for this walk (--gait {gait}, \
-                 --no-adapt-friction or a suite method's adapt_friction = false): drop one or \
-                 the other"
+                "{}: slip handling is off for this walk (--gait {gait}, --no-adapt-friction or \
+                 a suite method's adapt_friction = false): drop one or the other",
+                slip_settings.join(", ")
             ));
         }
         spec.seed = self.sensing.seed;
@@ -703,6 +716,29 @@ mod tests {
                 ..Default::default()
             },
             "are for --controller eemp --gait free",
+        );
+        // Slip handling's settings are named as given, where it is off and for a policy.
+        bad(
+            WalkDescription {
+                adapt_friction: Some(false),
+                hold_raise_fraction: Some(0.8),
+                slip_max_speed_mps: Some(0.5),
+                ..Default::default()
+            },
+            "--hold-raise-fraction, --slip-max-speed: slip handling is off for this walk",
+        );
+        #[cfg(feature = "learning")]
+        bad(
+            WalkDescription {
+                controller: "eemp-rl".into(),
+                policy: Some(
+                    std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+                        .join("../../policies/a1_eemp_rl.safetensors"),
+                ),
+                slip_max_speed_mps: Some(0.5),
+                ..Default::default()
+            },
+            "--slip-max-speed: slip handling is for --controller eemp, not eemp-rl",
         );
         assert!(toml::from_str::<WalkDescription>("sped_mps = 1").is_err());
     }
