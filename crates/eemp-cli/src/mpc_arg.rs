@@ -37,6 +37,15 @@ pub struct MpcArgs {
     /// walk's 0.6, none for the trot and the free gait).
     #[arg(long)]
     pub slip_max_speed: Option<f64>,
+    /// With slip handling: once its coefficient is below this, the command's speed is capped at
+    /// --slow-speed until the coefficient is back at 0.25 (`slip.slow_below_friction`, 0–0.25;
+    /// 0: never; default: the gait's, the walk's 0.18, none for the trot and the free gait).
+    #[arg(long)]
+    pub slow_below_friction: Option<f64>,
+    /// With slip handling: the speed cap on a floor found slippery, m/s (`slip.slow_speed_mps`,
+    /// 0–10; default 0.3).
+    #[arg(long)]
+    pub slow_speed: Option<f64>,
     /// The placement ellipses stay within the friction cone seen from the hip: r ≤ factor · μ̂
     /// · X_z, μ̂ the slip detector's coefficient (`planner.ellipse_friction_factor`; 0: off).
     #[arg(long, default_value_t = eemp_core::planner::PlannerConfig::default().ellipse_friction_factor)]

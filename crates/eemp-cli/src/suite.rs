@@ -61,6 +61,13 @@ pub struct MethodConfig {
     /// coefficient (`slip.max_speed_mps`; absent: the gait's, the walk's 0.6; 0: no limit).
     #[serde(default)]
     pub slip_max_speed_mps: Option<f64>,
+    /// EEMP with slip handling: the coefficient below which the speed is capped for a floor
+    /// found slippery (`slip.slow_below_friction`; absent: the gait's, the walk's 0.18; 0: never).
+    #[serde(default)]
+    pub slow_below_friction: Option<f64>,
+    /// EEMP with slip handling: that cap, m/s (`slip.slow_speed_mps`; absent: 0.3).
+    #[serde(default)]
+    pub slow_speed_mps: Option<f64>,
     /// EEMP: the ellipses' cap by the slip detector's coefficient
     /// (`planner.ellipse_friction_factor`; absent: its default 1; 0: off).
     #[serde(default)]
@@ -80,18 +87,30 @@ pub struct MethodConfig {
     /// EEMP: the MPC's horizon in steps of its dt (absent: `MpcConfig`'s default).
     #[serde(default)]
     pub mpc_horizon: Option<usize>,
+    /// EEMP whose free-gait table EEMP-RL learned (CMA-ES's re-tuned table,
+    /// `policies/a1_eemp_rl_cmaes_entry.toml`): the reports count it as EEMP-RL, against the
+    /// free gait's table. Kind eemp, gait free.
+    #[serde(default)]
+    pub eemp_rl: bool,
 }
 
 impl MethodConfig {
+    /// EEMP-RL: a residual policy (kind eemp-rl) or a table it learned (`eemp_rl = true`).
+    pub fn is_eemp_rl(&self) -> bool {
+        self.kind == "eemp-rl" || self.eemp_rl
+    }
+
     /// The controller settings of its own only an EEMP method may have (besides
     /// `adapt_friction`), each with whether it is set: a policy refuses them, and the table
     /// EEMP-RL is measured against has none.
-    pub fn eemp_controller_settings(&self) -> [(bool, &'static str); 7] {
+    pub fn eemp_controller_settings(&self) -> [(bool, &'static str); 9] {
         [
             (self.initial_friction.is_some(), "initial_friction"),
             (self.hold_cap_after_slip.is_some(), "hold_cap_after_slip"),
             (self.hold_raise_fraction.is_some(), "hold_raise_fraction"),
             (self.slip_max_speed_mps.is_some(), "slip_max_speed_mps"),
+            (self.slow_below_friction.is_some(), "slow_below_friction"),
+            (self.slow_speed_mps.is_some(), "slow_speed_mps"),
             (
                 self.ellipse_friction_factor.is_some(),
                 "ellipse_friction_factor",
@@ -152,6 +171,8 @@ impl MethodConfig {
             d.hold_cap_after_slip = self.hold_cap_after_slip;
             d.hold_raise_fraction = self.hold_raise_fraction;
             d.slip_max_speed_mps = self.slip_max_speed_mps;
+            d.slow_below_friction = self.slow_below_friction;
+            d.slow_speed_mps = self.slow_speed_mps;
             d.mpc_horizon = self.mpc_horizon;
             if let Some(f) = self.ellipse_friction_factor {
                 d.ellipse_friction_factor = f;
@@ -410,6 +431,40 @@ impl SuiteConfig {
                             .check(&robot, &t.display().to_string())
                             .map_err(|e| format!("method '{}': {e}", m.name))?;
                     }
+                    if m.eemp_rl {
+                        if g != Gait::Free {
+                            return Err(format!(
+                                "method '{}': eemp_rl = true is for a free-gait table EEMP-RL \
+                                 learned (gait = \"free\"), not gait {g}",
+                                m.name
+                            ));
+                        }
+                        if m.table.is_none() {
+                            return Err(format!(
+                                "method '{}': eemp_rl = true needs the learned table \
+                                 (table = FILE)",
+                                m.name
+                            ));
+                        }
+                        // Compared with the plain free table: the same controller, or the
+                        // comparison is not like for like.
+                        let kf = [
+                            (m.kf_velocity_jump_mps.is_some(), "kf_velocity_jump_mps"),
+                            (m.kf_leg_outlier_mps.is_some(), "kf_leg_outlier_mps"),
+                        ];
+                        if let Some((_, key)) = m
+                            .eemp_controller_settings()
+                            .into_iter()
+                            .chain(kf)
+                            .find(|(set, _)| *set)
+                        {
+                            return Err(format!(
+                                "method '{}': {key} is not for eemp_rl = true (a learned table \
+                                 runs the free table's controller)",
+                                m.name
+                            ));
+                        }
+                    }
                     if m.free_pairing.is_some() && g != Gait::Free {
                         return Err(format!(
                             "method '{}': free_pairing is for gait free, not {g}",
@@ -435,6 +490,13 @@ impl SuiteConfig {
                         .map_err(|e| format!("method '{}': {e}", m.name))?;
                 }
                 k @ ("model-free" | "imitation" | "eemp-rl") => {
+                    if m.eemp_rl {
+                        return Err(format!(
+                            "method '{}': eemp_rl = true marks a learned table of kind eemp, \
+                             not kind {k}",
+                            m.name
+                        ));
+                    }
                     let slip = (m.adapt_friction.is_some(), "adapt_friction");
                     for (set, key) in std::iter::once(slip).chain(m.eemp_controller_settings()) {
                         if set {

@@ -91,7 +91,7 @@ fn lead_section(
     cells: &BTreeMap<CellKey, Cell>,
     key: &dyn Fn(&str, f64) -> CellKey,
 ) {
-    let Some(e) = cfg.methods.iter().find(|m| m.kind == "eemp") else {
+    let Some(e) = cfg.methods.iter().find(|m| m.kind == "eemp" && !m.eemp_rl) else {
         return;
     };
     let rivals: Vec<&MethodConfig> = cfg
@@ -622,7 +622,18 @@ pub fn compare(args: &SuiteArgs) -> Result<(), String> {
             .find(|m| m.kind == k)
             .map(|m| m.name.clone())
     };
-    let eemp = by_kind("eemp");
+    // EEMP-Analytical: the first EEMP method that is not a table EEMP-RL learned.
+    let eemp = cfg
+        .methods
+        .iter()
+        .find(|m| m.kind == "eemp" && !m.eemp_rl)
+        .map(|m| m.name.clone());
+    // EEMP-RL: the first policy or learned table, in the suite's order.
+    let eemp_rl = cfg
+        .methods
+        .iter()
+        .find(|m| m.is_eemp_rl())
+        .map(|m| m.name.clone());
     let mf = by_kind("model-free");
     let im = by_kind("imitation");
     let low: Vec<f64> = speeds
@@ -691,7 +702,7 @@ pub fn compare(args: &SuiteArgs) -> Result<(), String> {
             );
         }
     }
-    match (&eemp, by_kind("eemp-rl")) {
+    match (&eemp, eemp_rl) {
         (Some(e), Some(r)) => {
             let mut ge = [0usize; 3];
             let (mut worst_pct, mut sum_pct, mut within) = (f64::NEG_INFINITY, 0.0, 0usize);
@@ -779,6 +790,7 @@ fn rl_against_table<'a>(
     // trained (its config says), where the suite has that method, else the free gait's default.
     let free_table = |m: &&MethodConfig, slip: Option<bool>| {
         m.kind == "eemp"
+            && !m.eemp_rl
             && m.gait.as_deref() == Some("free")
             && m.adapt_friction == slip
             && m.eemp_controller_settings().iter().all(|(set, _)| !set)
@@ -786,9 +798,13 @@ fn rl_against_table<'a>(
             && m.kf_leg_outlier_mps.is_none()
     };
     let mut lines = Vec::new();
-    for r in cfg.methods.iter().filter(|m| m.kind == "eemp-rl") {
+    for r in cfg.methods.iter().filter(|m| m.is_eemp_rl()) {
         let same = |t: &&MethodConfig| t.estimator(cfg) == r.estimator(cfg);
-        let slip = r.policy.as_deref().and_then(policy_runs_slip_handling);
+        // A learned table walks with its method's own slip setting (absent: the default, on).
+        let slip = match r.kind.as_str() {
+            "eemp" => Some(r.adapt_friction != Some(false)),
+            _ => r.policy.as_deref().and_then(policy_runs_slip_handling),
+        };
         if slip.is_none() {
             eprintln!(
                 "note: cannot read {}'s policy: it is compared with the table without slip \

@@ -119,6 +119,8 @@ impl WalkArgs {
             hold_cap_after_slip: self.mpc.hold_cap_after_slip,
             hold_raise_fraction: self.mpc.hold_raise_fraction,
             slip_max_speed_mps: self.mpc.slip_max_speed,
+            slow_below_friction: self.mpc.slow_below_friction,
+            slow_speed_mps: self.mpc.slow_speed,
             free_pair_tolerance: self.free.free_pair_tolerance,
             free_support_margin_m: self.free.free_support_margin,
             free_support_check: None,

@@ -66,6 +66,9 @@ pub fn walk(d: &WalkDescription, o: &WalkOutputs) -> Result<(), String> {
         // The MPC's friction coefficient (slip handling's belief about the floor; NaN without
         // an MPC).
         "mu_estimate",
+        // Slip handling's speed cap on a floor it found slippery (`slip.slow_below_friction`,
+        // the walk's default), m/s; NaN: no cap.
+        "speed_cap_mps",
     ]
     .iter()
     .map(|s| s.to_string())
@@ -144,6 +147,7 @@ pub fn walk(d: &WalkDescription, o: &WalkOutputs) -> Result<(), String> {
                 None => row.extend([f64::NAN; 5]),
             }
             row.push(mu_estimate);
+            row.push(r.plan.and_then(|p| p.speed_cap_mps).unwrap_or(f64::NAN));
             for leg in Leg::ALL {
                 let f = r.feet_world[leg];
                 let z_ref = r
@@ -277,6 +281,9 @@ pub fn walk(d: &WalkDescription, o: &WalkOutputs) -> Result<(), String> {
                 "min": st.mpc_friction_min,
                 "mean": (st.mpc_solves > 0).then(|| st.mpc_friction_sum / st.mpc_solves as f64),
                 "floor_friction": spec.floor_friction.unwrap_or(robot.simulation.floor_friction),
+                // The share of the run the speed cap for a floor found slippery was on
+                // (`slip.slow_below_friction`; a command already below it stays as it was).
+                "slowed_share": st.slowed_steps as f64 / st.steps.max(1) as f64,
             }),
         ),
         ("rerun", serde_json::json!(recording)),

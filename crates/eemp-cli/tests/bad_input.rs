@@ -46,7 +46,7 @@ fn bad_walk_and_stand_input_exits_2_names_the_value_and_writes_nothing() {
         malformed.to_str().unwrap(),
     );
     // (arguments, what the message must contain)
-    let cases: [(&[&str], &[&str]); 13] = [
+    let cases: [(&[&str], &[&str]); 15] = [
         (
             &["walk", "--gait", "gallop"],
             &["gallop", "trot, walk, free"],
@@ -85,6 +85,15 @@ fn bad_walk_and_stand_input_exits_2_names_the_value_and_writes_nothing() {
         (
             &["walk", "--slip-max-speed", "-1"],
             &["slip.max_speed_mps", "-1", "[0, 10]"],
+        ),
+        (
+            &["walk", "--gait", "walk", "--slow-speed", "-0.3"],
+            &["slip.slow_speed_mps", "-0.3", "[0, 10]"],
+        ),
+        (
+            // The cap lifts at 0.25: a threshold above it leaves no room to lift.
+            &["walk", "--gait", "walk", "--slow-below-friction", "0.3"],
+            &["slip.slow_below_friction", "0.3", "[0, 0.25]"],
         ),
         (
             &[

@@ -38,6 +38,9 @@ pub struct Plan {
     pub params: Option<PlannerParams>,
     /// The planner's own geometry at this step (None: a plan without it, standing).
     pub geometry: Option<PlanGeometry>,
+    /// The speed cap slip handling put on the command for a floor it found slippery, m/s
+    /// (`slip.slow_below_friction`; None: the command as given).
+    pub speed_cap_mps: Option<f64>,
 }
 
 /// What Algorithm 1 sees and decides at one step, in the world frame, for viewers and traces:
@@ -113,6 +116,7 @@ pub struct ControlOutput {
     pub mpc_event: Option<MpcEvent>,
 }
 
+#[derive(Clone)]
 pub struct LocomotionController {
     config: ControllerConfig,
     kinematics: LegKinematics,
@@ -157,6 +161,11 @@ impl LocomotionController {
     /// The MPC's friction coefficient now (the slip detector's, when it runs).
     pub fn friction_coefficient(&self) -> f64 {
         self.mpc.friction_coefficient()
+    }
+
+    /// Slip handling's speed cap on a floor it found slippery, m/s (None: no cap).
+    pub fn speed_cap_mps(&self) -> Option<f64> {
+        self.friction.speed_cap_mps()
     }
 
     /// `clock_s` is the controller's own clock (used for the MPC rate), s.

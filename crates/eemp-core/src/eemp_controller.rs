@@ -34,6 +34,7 @@ impl ParamsSource {
 }
 
 /// The walking controller of the paper.
+#[derive(Clone)]
 pub struct EempController {
     pub planner: EemPlanner,
     pub locomotion: LocomotionController,
@@ -61,7 +62,13 @@ impl EempController {
 impl Controller for EempController {
     fn control(&mut self, input: &ControlInput) -> ControlOutput {
         let t = input.state.time_s;
-        let c = input.command;
+        // On a floor slip handling found slippery, the command's speed is capped (as of the
+        // last step, as the friction cone below).
+        let speed_cap_mps = self.locomotion.speed_cap_mps();
+        let c = match speed_cap_mps {
+            Some(v) => input.command.with_speed_at_most(v),
+            None => input.command,
+        };
         let started = std::time::Instant::now();
         // The slip detector's coefficient as of the last step (the nominal until a slip).
         let params = self.planner.config().within_friction_cone(
@@ -69,9 +76,10 @@ impl Controller for EempController {
             self.locomotion.friction_coefficient(),
             &c,
         );
-        let plan = self
+        let mut plan = self
             .planner
             .plan(t, input.state, input.feet_world, &c, &params);
+        plan.speed_cap_mps = speed_cap_mps;
         self.planning_time_s = started.elapsed().as_secs_f64();
         let out = self
             .locomotion

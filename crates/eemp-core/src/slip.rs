@@ -64,6 +64,19 @@
 //! that cone for the first 1–2 s, after which the trot keeps a gait cycle with more lateral
 //! sway; `docs/comparison-and-robustness.md`); over seeds 11–16 the same case went
 //! 0.039 → 0.038.
+//!
+//! Slowing down on a slippery floor (2026-12-06): once the coefficient is below
+//! [`SlipConfig::slow_below_friction`] the command's speed is capped at
+//! [`SlipConfig::slow_speed_mps`] (0.3 m/s) until the coefficient is back at
+//! [`SlipConfig::slow_release_friction`] (0.25), as a person slows down on ice. The walk's
+//! default (0.18): at 0.5 m/s it fell on the 0.2 and 0.25 floors and under 0.5 m/s pushes on the
+//! 0.3 floor in 7 of 9 runs (filter, seeds 1–3), its coefficient at its floor of 0.15 within 2 s
+//! and the falls at 5–6 s; capped, it walked 24 of 24 on those floors and 0.8 → 0.2 → 0.8 (seeds
+//! 11–16). On the 0.8 floor its coefficient never went below 0.21 at 0.45–0.59 m/s (filter and
+//! ground truth, seeds 4–9, 48 runs: no cap, so no cost). Not for the trot and the free gait:
+//! their feet slide while the robot settles, the coefficient drops to its floor on the 0.8
+//! floor too, and the cap then took 6–12 % of a flat run at 0.5 m/s (2 of 6 seeds, RMSE up to
+//! 0.016 m/s worse).
 
 use crate::config_error::{check_range, ConfigError};
 use crate::leg::{Leg, LegMap};
@@ -145,6 +158,16 @@ pub struct SlipConfig {
     /// limit, the trot's and the free gait's default; the walk's 0.6, see
     /// [`SlipConfig::default_for`]).
     pub max_speed_mps: f64,
+    /// Slow down on a floor found slippery: once the coefficient is below this, the commanded
+    /// speed is capped at `slow_speed_mps` (its direction kept, the yaw rate untouched) until
+    /// the coefficient is back at `slow_release_friction` or above. 0: off (the trot's and the
+    /// free gait's default; the walk's, see [`SlipConfig::default_for`]).
+    pub slow_below_friction: f64,
+    /// The speed cap on a floor found slippery, m/s.
+    pub slow_speed_mps: f64,
+    /// The coefficient at which the cap lifts again (≥ `slow_below_friction`: the gap keeps the
+    /// cap from flickering while the coefficient hovers at the threshold).
+    pub slow_release_friction: f64,
 }
 
 /// The coefficient slip handling starts from when neither the run (`slip.initial_friction`)
@@ -157,6 +180,18 @@ pub const CAUTIOUS_START: f64 = 0.3;
 
 /// The walk's [`SlipConfig::max_speed_mps`]: above it its landing feet skid on any floor.
 pub const WALK_MAX_SPEED_MPS: f64 = 0.6;
+
+/// The speed cap on a floor found slippery ([`SlipConfig::slow_speed_mps`]). The walk at 0.5 m/s
+/// fell in 7 of 9 runs on the 0.2 and 0.25 floors and under 0.5 m/s pushes on the 0.3 floor
+/// (filter, seeds 1–3); commanded 0.4 m/s it fell under those pushes in 2 of 6 (seeds 11–16,
+/// which the suites do not use), commanded 0.3 m/s in none. (The paper's walk is stable up to
+/// 0.4 m/s.)
+pub const SLIPPERY_SPEED_MPS: f64 = 0.3;
+
+/// The walk's [`SlipConfig::slow_below_friction`]. On the 0.8 floor at 0.45–0.59 m/s the
+/// walk's coefficient never went below 0.21 (filter and ground truth, seeds 4–9); on the 0.2 and
+/// 0.25 floors at 0.5 m/s it reached its floor of 0.15 within 2 s, 3–4 s before the falls.
+pub const WALK_SLOW_BELOW_FRICTION: f64 = 0.18;
 
 impl Default for SlipConfig {
     fn default() -> Self {
@@ -177,6 +212,9 @@ impl Default for SlipConfig {
             require_ground_speed: false,
             hold_raise_fraction: 1.0,
             max_speed_mps: 0.0,
+            slow_below_friction: 0.0,
+            slow_speed_mps: SLIPPERY_SPEED_MPS,
+            slow_release_friction: 0.25,
         }
     }
 }
@@ -198,7 +236,8 @@ impl SlipConfig {
     /// 2026-12-06 the walk's default was off. The trot and the free gait keep both gates off:
     /// each alone raised their falls under pushes on the 0.3 floor (ground speed: 53, vertical
     /// speed: 50, both: 56 of 72 runs against 44; seeds 11–22), where slides of feet that also
-    /// move vertically are real.
+    /// move vertically are real. The walk also slows to 0.3 m/s on a floor found slippery
+    /// (`slow_below_friction` 0.18, see the module docs); the trot and the free gait do not.
     pub fn default_for(gait: crate::planner::gait::Gait) -> Self {
         let walk = gait == crate::planner::gait::Gait::Walk;
         SlipConfig {
@@ -206,6 +245,7 @@ impl SlipConfig {
             max_vertical_speed_mps: if walk { 0.2 } else { 0.0 },
             require_ground_speed: walk,
             max_speed_mps: if walk { WALK_MAX_SPEED_MPS } else { 0.0 },
+            slow_below_friction: if walk { WALK_SLOW_BELOW_FRICTION } else { 0.0 },
             ..Default::default()
         }
     }
@@ -253,6 +293,34 @@ impl SlipConfig {
         )?;
         check_range("slip.max_speed_mps", self.max_speed_mps, 0.0, 10.0)?;
         check_range(
+            "slip.slow_release_friction",
+            self.slow_release_friction,
+            crate::convex_mpc::FRICTION_RANGE[0],
+            crate::convex_mpc::FRICTION_RANGE[1],
+        )?;
+        // At most the release: a cap that starts above where it lifts would never lift.
+        check_range(
+            "slip.slow_below_friction",
+            self.slow_below_friction,
+            0.0,
+            self.slow_release_friction,
+        )?;
+        // Above the coefficient's floor, or the cap could never come on (0: off).
+        if self.slow_below_friction > 0.0 && self.slow_below_friction <= self.min_friction {
+            return Err(ConfigError::Invalid {
+                name: "slip.slow_below_friction".into(),
+                message: format!(
+                    "{} is at or below slip.min_friction = {}, so the coefficient never gets \
+                     under it (allowed: 0, or ({}, {}])",
+                    self.slow_below_friction,
+                    self.min_friction,
+                    self.min_friction,
+                    self.slow_release_friction
+                ),
+            });
+        }
+        check_range("slip.slow_speed_mps", self.slow_speed_mps, 0.0, 10.0)?;
+        check_range(
             "slip.max_vertical_speed_mps",
             self.max_vertical_speed_mps,
             0.0,
@@ -283,6 +351,8 @@ pub struct FrictionAdapter {
     /// The highest coefficient a hold may raise to (none before the first slip).
     hold_cap: Option<f64>,
     slips: usize,
+    /// The floor was found slippery: the speed cap is on ([`SlipConfig::slow_below_friction`]).
+    slowed: bool,
 }
 
 impl FrictionAdapter {
@@ -302,6 +372,7 @@ impl FrictionAdapter {
             last_backoff_s: None,
             hold_cap: None,
             slips: 0,
+            slowed: false,
         })
     }
 
@@ -315,6 +386,24 @@ impl FrictionAdapter {
         self.slips
     }
 
+    /// The speed cap on a floor found slippery, m/s, as of the last update (None: no cap).
+    pub fn speed_cap_mps(&self) -> Option<f64> {
+        self.slowed.then_some(self.config.slow_speed_mps)
+    }
+
+    /// Latches the cap on below `slow_below_friction` and off from `slow_release_friction`.
+    fn update_speed_cap(&mut self) {
+        let c = &self.config;
+        if c.slow_below_friction <= 0.0 {
+            self.slowed = false;
+        } else if self.current < c.slow_below_friction {
+            self.slowed = true;
+        } else if self.current >= c.slow_release_friction.min(self.nominal) {
+            // (An MPC nominal below the release would otherwise keep the cap on for good.)
+            self.slowed = false;
+        }
+    }
+
     /// At or above [`SlipConfig::max_speed_mps`]: the nominal coefficient, and no slip, hold,
     /// cap or stance carried over to when the speed comes back under the limit.
     fn rest_at_nominal(&mut self, t_s: f64) {
@@ -324,6 +413,7 @@ impl FrictionAdapter {
         self.last_backoff_s = None;
         self.stance_since = LegMap::splat(None);
         self.slipped_this_stance = LegMap::splat(false);
+        self.slowed = false;
     }
 
     /// One control step at `t_s`: the planned stance, each foot's ground velocity (world, m/s),
@@ -420,6 +510,7 @@ impl FrictionAdapter {
                 }
             }
         }
+        self.update_speed_cap();
         self.current
     }
 }
@@ -585,6 +676,76 @@ mod tests {
             .unwrap_err()
             .to_string()
             .contains("slip.max_speed_mps"));
+    }
+
+    #[test]
+    fn a_floor_found_slippery_caps_the_walks_speed_until_the_coefficient_recovers() {
+        use crate::planner::gait::Gait;
+        let walk = SlipConfig::default_for(Gait::Walk);
+        assert_eq!(walk.slow_below_friction, WALK_SLOW_BELOW_FRICTION);
+        assert_eq!(walk.slow_speed_mps, SLIPPERY_SPEED_MPS);
+        assert_eq!(SlipConfig::default_for(Gait::Trot).slow_below_friction, 0.0);
+        assert_eq!(SlipConfig::default_for(Gait::Free).slow_below_friction, 0.0);
+        // Starting at 0.2 (above 0.18: no cap), one slip takes the coefficient to its floor of
+        // 0.15 (0.2 × 0.7 = 0.14): capped at 0.3 m/s.
+        let cfg = SlipConfig {
+            initial_friction: Some(0.2),
+            hold_cap_after_slip: 0.0,
+            ..walk
+        };
+        let (v, forces) = front_right_slides_flat();
+        let stance = LegMap::splat(true);
+        let mut a = FrictionAdapter::new(cfg.clone(), 0.6).unwrap();
+        assert_eq!(a.update(0.0, &stance, &v, &forces, 0.5), 0.2);
+        assert_eq!(a.speed_cap_mps(), None);
+        assert_eq!(a.update(0.05, &stance, &v, &forces, 0.5), 0.15);
+        assert_eq!(a.speed_cap_mps(), Some(0.3));
+        // Nothing slides or holds from here (the feet in swing): the coefficient recovers at
+        // 0.02/s. Past 0.18 the cap stays (the hysteresis); from 0.25 (5 s later) it lifts.
+        let swing = LegMap::splat(false);
+        let mu = a.update(2.05, &swing, &still(), &forces, 0.3);
+        assert!((mu - 0.19).abs() < 1e-12, "{mu}");
+        assert_eq!(a.speed_cap_mps(), Some(0.3));
+        assert!(a.update(5.0, &swing, &still(), &forces, 0.3) < 0.25);
+        assert_eq!(a.speed_cap_mps(), Some(0.3));
+        assert!(a.update(5.1, &swing, &still(), &forces, 0.3) >= 0.25);
+        assert_eq!(a.speed_cap_mps(), None);
+        // Resting at the nominal (above the walk's 0.6 m/s) lifts the cap as well; without slip
+        // handling there is none.
+        let mut b = FrictionAdapter::new(cfg.clone(), 0.6).unwrap();
+        b.update(0.0, &stance, &v, &forces, 0.5);
+        b.update(0.05, &stance, &v, &forces, 0.5);
+        assert_eq!(b.speed_cap_mps(), Some(0.3));
+        b.update(0.06, &stance, &v, &forces, 0.7);
+        assert_eq!(b.speed_cap_mps(), None);
+        let off = SlipConfig {
+            adapt_friction: false,
+            ..cfg.clone()
+        };
+        let mut c = FrictionAdapter::new(off, 0.6).unwrap();
+        c.update(0.0, &stance, &v, &forces, 0.5);
+        c.update(0.05, &stance, &v, &forces, 0.5);
+        assert_eq!(c.speed_cap_mps(), None);
+        // A threshold above the release is refused, naming the key and the release.
+        let bad = SlipConfig {
+            slow_release_friction: 0.1,
+            ..cfg
+        };
+        let err = bad.validate().unwrap_err().to_string();
+        assert!(
+            err.contains("slip.slow_below_friction") && err.contains("[0, 0.1]"),
+            "{err}"
+        );
+        // So is one at or below the coefficient's floor (it could never come on).
+        let never = SlipConfig {
+            slow_below_friction: 0.15,
+            ..SlipConfig::default_for(Gait::Walk)
+        };
+        let err = never.validate().unwrap_err().to_string();
+        assert!(
+            err.contains("slip.slow_below_friction: 0.15") && err.contains("(0.15, 0.25]"),
+            "{err}"
+        );
     }
 
     #[test]

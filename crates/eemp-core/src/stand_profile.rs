@@ -200,6 +200,7 @@ impl StandPlanner {
             contacts_horizon: vec![LegMap::splat(true); n],
             params: None,
             geometry: None,
+            speed_cap_mps: None,
         }
     }
 }

@@ -206,6 +206,12 @@ pub struct WalkDescription {
     /// coefficient, m/s (`slip.max_speed_mps`; 0: no limit; default: the gait's, the walk's
     /// 0.6).
     pub slip_max_speed_mps: Option<f64>,
+    /// With slip handling: the coefficient below which the command's speed is capped for a
+    /// floor found slippery (`slip.slow_below_friction`; 0: never; default: the gait's, the
+    /// walk's 0.18).
+    pub slow_below_friction: Option<f64>,
+    /// With slip handling: that cap, m/s (`slip.slow_speed_mps`; default 0.3).
+    pub slow_speed_mps: Option<f64>,
     pub free_pair_tolerance: Option<f64>,
     pub free_support_margin_m: Option<f64>,
     /// Whether the free gait's support rule applies (`FreePairing::support_check`).
@@ -249,6 +255,8 @@ impl Default for WalkDescription {
             hold_cap_after_slip: None,
             hold_raise_fraction: None,
             slip_max_speed_mps: None,
+            slow_below_friction: None,
+            slow_speed_mps: None,
             free_pair_tolerance: None,
             free_support_margin_m: None,
             free_support_check: None,
@@ -286,6 +294,8 @@ impl WalkDescription {
             ("--hold-cap-after-slip", self.hold_cap_after_slip.is_some()),
             ("--hold-raise-fraction", self.hold_raise_fraction.is_some()),
             ("--slip-max-speed", self.slip_max_speed_mps.is_some()),
+            ("--slow-below-friction", self.slow_below_friction.is_some()),
+            ("--slow-speed", self.slow_speed_mps.is_some()),
         ]
         .into_iter()
         .filter_map(|(flag, set)| set.then_some(flag))
@@ -467,6 +477,12 @@ impl WalkDescription {
         }
         if let Some(v) = self.slip_max_speed_mps {
             spec.controller.slip.max_speed_mps = v;
+        }
+        if let Some(mu) = self.slow_below_friction {
+            spec.controller.slip.slow_below_friction = mu;
+        }
+        if let Some(v) = self.slow_speed_mps {
+            spec.controller.slip.slow_speed_mps = v;
         }
         // Settings of slip handling where it is off would be silently ignored.
         if !spec.controller.slip.adapt_friction && !slip_settings.is_empty() {

@@ -1,6 +1,7 @@
 //! EEMP-RL: the action squashing covers Table I exactly and never leaves it; a policy that
 //! answers fixed parameters walks exactly as EEMP with those parameters; the environment steps;
-//! the residual form with a zero action is EEMP-Analytical bit for bit and rewards eq. 8.
+//! the residual form with a zero action is EEMP-Analytical bit for bit and rewards eq. 8; the
+//! paired reward measures a correction against the table's walk from the same state.
 
 use eemp_core::planner::params::table_i;
 use eemp_core::planner::params_table::ParamsTable;
@@ -507,6 +508,63 @@ fn cmaes_needs_the_residual_on_a_nearest_table_and_a_resumed_run_replays_to_the_
 }
 
 #[test]
+fn cmaes_per_entry_keeps_only_the_corrections_that_beat_the_table_and_resumes() {
+    use eemp_rl::cma_table::train_cmaes;
+    use eemp_rl::train::TrainOptions;
+    let mut config = tiny_cmaes_config();
+    // Validation needs the per-entry search.
+    config.cmaes.validation_episodes = 1;
+    let e = config.validate().unwrap_err().to_string();
+    assert!(
+        e.contains("cmaes.validation_episodes") && e.contains("per_entry"),
+        "{e}"
+    );
+    config.cmaes.per_entry = true;
+    let table = ParamsTable::load(&repo_file("tables/a1_free.toml")).unwrap();
+    let n = table.entries.len();
+    // Two generations of 4 candidates × 1 episode of 2 decisions per entry.
+    config.total_env_steps = 16 * n as u64;
+    config.validate().unwrap();
+    let robot = RobotConfig::a1();
+    let dir = tempfile::tempdir().unwrap();
+    let run = |resume: bool| {
+        let opts = TrainOptions {
+            out: dir.path().to_path_buf(),
+            resume,
+            threads: 2,
+            max_iterations: None,
+        };
+        let mut generations = 0;
+        let t = train_cmaes(&config, &robot, &opts, &mut |_| generations += 1).unwrap();
+        (t, generations)
+    };
+    let (found, gens) = run(false);
+    assert!(gens >= 2 * n, "{gens} generations");
+    // One validation row per entry; an entry not kept is the table's, bit for bit.
+    let validation = std::fs::read_to_string(dir.path().join("validation.csv")).unwrap();
+    let rows: Vec<Vec<String>> = validation
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(str::to_string).collect())
+        .collect();
+    assert_eq!(rows.len(), n);
+    for (k, row) in rows.iter().enumerate() {
+        let (base, corrected): (f64, f64) = (row[3].parse().unwrap(), row[4].parse().unwrap());
+        let kept = row[5] == "true";
+        assert_eq!(kept, corrected > base, "entry {k}: {row:?}");
+        let same = found.entries[k].params() == table.entries[k].params();
+        assert!(kept || same, "entry {k} not kept but changed");
+    }
+    // Resumed from its own cache, the run replays to the same table without simulating.
+    let (again, _) = run(true);
+    assert_eq!(again, found);
+    assert_eq!(
+        std::fs::read_to_string(dir.path().join("validation.csv")).unwrap(),
+        validation
+    );
+}
+
+#[test]
 fn nominal_worlds_are_the_robot_files_and_leave_the_other_worlds_as_they_were() {
     use eemp_rl::tasks::eemp_rl::{TrainWorld, TrainWorlds};
     let base = TrainWorlds::default();
@@ -536,4 +594,76 @@ fn nominal_worlds_are_the_robot_files_and_leave_the_other_worlds_as_they_were() 
     };
     let err = bad.validate().unwrap_err().to_string();
     assert!(err.contains("eemp_rl.worlds.nominal_share"), "{err}");
+}
+
+#[test]
+fn the_paired_reward_is_the_policys_terms_minus_the_tables_from_the_same_state() {
+    use eemp_rl::tasks::OnClosedLoop;
+    use eemp_sim::closed_loop::{Push, StateSource};
+    let robot = RobotConfig::a1();
+    let model = eemp_sim::backend::build_model(&robot, &Default::default()).unwrap();
+    let mut cfg = residual_config(2.0);
+    let mut paired_cfg = cfg.clone();
+    paired_cfg.residual.as_mut().unwrap().paired = true;
+    cfg.residual.as_mut().unwrap().paired = false;
+    // On the filter with sensor noise and a push inside the second window: the copy must carry
+    // the noise generator and the pending push, or the zero action would not score exactly 0.
+    let env_on_kf = |cfg: &EempRlConfig| {
+        let mut env = EempRlEnv::new(&robot, model.clone(), cfg.clone()).unwrap();
+        env.set_state_source(&StateSource::kf(&robot, Default::default(), 11))
+            .unwrap();
+        env
+    };
+    let push = [Push::step(0.8, nalgebra::Vector3::new(0.0, 0.4, 0.0))];
+    let command = VelocityCommand {
+        vx_mps: 0.4,
+        ..Default::default()
+    };
+    let mut obs = vec![0f32; cfg.obs_dim()];
+    let mut rng = ChaCha8Rng::seed_from_u64(0);
+    let first_window = |cfg: &EempRlConfig, action: &[f32; 5]| {
+        let mut env = env_on_kf(cfg);
+        let mut obs = vec![0f32; cfg.obs_dim()];
+        let mut terms = vec![0.0; 4];
+        env.reset_with(command, 4, &push, &mut obs);
+        // The command starts at 0.5 s: the second window is the first that walks.
+        for a in [&[0.0; 5], action] {
+            let info = env.step(a, &mut ChaCha8Rng::seed_from_u64(0), &mut obs, &mut terms);
+            assert!(!info.terminated, "{info:?}");
+        }
+        terms
+    };
+    // A zero correction earns exactly 0 in every window of the episode.
+    let mut env = env_on_kf(&paired_cfg);
+    env.reset_with(command, 4, &push, &mut obs);
+    let mut terms = vec![0.0; 4];
+    loop {
+        let info = env.step(&[0.0; 5], &mut rng, &mut obs, &mut terms);
+        assert!(!info.terminated);
+        assert_eq!(terms, [0.0; 4], "the table against itself");
+        if info.truncated {
+            break;
+        }
+    }
+    // A real correction (wider ellipses, a higher step) in the second window: the paired terms
+    // are the plain terms of that window minus the plain terms of the zero action's window, both
+    // measured by separate environments from the same state.
+    let action = [0.0, 1.5, 0.0, 2.0, 2.0];
+    let paired = first_window(&paired_cfg, &action);
+    let plain = first_window(&cfg, &action);
+    let table = first_window(&cfg, &[0.0; 5]);
+    assert!(
+        plain[0] != table[0],
+        "the correction changes the energy term"
+    );
+    for i in 0..3 {
+        assert!(
+            (paired[i] - (plain[i] - table[i])).abs() < 1e-12,
+            "term {i}: {} vs {} - {}",
+            paired[i],
+            plain[i],
+            table[i]
+        );
+    }
+    assert_eq!(paired[3], 0.0);
 }

@@ -53,6 +53,7 @@ struct Handles {
     imu_adr: [usize; 3],
 }
 
+#[derive(Clone)]
 pub struct Simulation {
     data: MjData<Arc<MjModel>>,
     kinematics: LegKinematics,

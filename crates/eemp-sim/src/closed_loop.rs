@@ -196,6 +196,9 @@ pub struct LoopStats {
     /// controller's belief about the floor, capped at the MPC's nominal; `eemp_core::slip`).
     pub mpc_friction_last: Option<f64>,
     pub mpc_friction_sum: f64,
+    /// Steps whose plan had slip handling's speed cap on (a floor found slippery; a command
+    /// already below the cap is counted too).
+    pub slowed_steps: usize,
     pub mpc_solve_times_s: Vec<f64>,
     pub fell: bool,
     pub fell_at_s: Option<f64>,
@@ -230,6 +233,7 @@ pub fn percentile(values: &[f64], p: f64) -> f64 {
 
 /// The closed loop as an episode object: every scenario (stand, walk), sweep, learned-controller
 /// environment and evaluation steps the robot through [`ClosedLoop::step`].
+#[derive(Clone)]
 pub struct ClosedLoop {
     sim: Simulation,
     pending: Vec<Push>,
@@ -504,6 +508,9 @@ impl ClosedLoop {
         }
         let t5 = Instant::now();
         let stats = &mut self.stats;
+        if controller.plan().is_some_and(|p| p.speed_cap_mps.is_some()) {
+            stats.slowed_steps += 1;
+        }
         let planning = controller.last_planning_time_s();
         if let Some(ev) = &output.mpc_event {
             stats.mpc_solves += 1;

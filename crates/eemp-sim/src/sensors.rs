@@ -83,6 +83,7 @@ pub struct SensorReading {
     pub joints: LegMap<LegJointState>,
 }
 
+#[derive(Clone)]
 pub struct Sensors {
     noise: SensorNoise,
     rng: ChaCha8Rng,

@@ -151,6 +151,7 @@ pub struct MpcSolution {
 }
 
 /// The MPC with its workspace. One per robot; no global state.
+#[derive(Clone)]
 pub struct ConvexMpc {
     config: MpcConfig,
     body: CompositeBody,

@@ -155,6 +155,23 @@ pub struct VelocityCommand {
     pub yaw_rate_rps: f64,
 }
 
+impl VelocityCommand {
+    /// The same command with its horizontal speed at most `max_speed_mps` (direction and yaw
+    /// rate kept).
+    pub fn with_speed_at_most(&self, max_speed_mps: f64) -> Self {
+        let speed = self.vx_mps.hypot(self.vy_mps);
+        if speed <= max_speed_mps || !speed.is_finite() {
+            return *self;
+        }
+        let k = max_speed_mps.max(0.0) / speed;
+        VelocityCommand {
+            vx_mps: self.vx_mps * k,
+            vy_mps: self.vy_mps * k,
+            ..*self
+        }
+    }
+}
+
 /// One leg's running swing: when it started, its eq. (7) trajectory (world frame, see
 /// [`EemPlanner::start_swing`]) and its eq. (6) touchdown point.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -173,6 +190,7 @@ impl PlannedSwing {
 }
 
 /// Algorithm 1 with its memory: the running swings, the previous swing's legs, step counts.
+#[derive(Clone)]
 pub struct EemPlanner {
     config: PlannerConfig,
     kinematics: LegKinematics,
@@ -352,6 +370,7 @@ impl EemPlanner {
             contacts_horizon,
             params: Some(*params),
             geometry: Some(geometry),
+            speed_cap_mps: None,
         }
     }
 

@@ -318,3 +318,17 @@ fn the_friction_cone_keeps_each_ellipse_at_least_eq6s_offset_wide() {
     };
     assert_eq!(off.within_friction_cone(&p, 0.2, &slow), p);
 }
+
+#[test]
+fn a_command_capped_in_speed_keeps_its_direction_and_yaw_rate() {
+    let c = VelocityCommand {
+        vx_mps: 0.3,
+        vy_mps: 0.4,
+        yaw_rate_rps: 0.2,
+    };
+    let capped = c.with_speed_at_most(0.25);
+    assert!((capped.vx_mps - 0.15).abs() < 1e-12 && (capped.vy_mps - 0.2).abs() < 1e-12);
+    assert_eq!(capped.yaw_rate_rps, 0.2);
+    assert_eq!(c.with_speed_at_most(0.5), c);
+    assert_eq!(c.with_speed_at_most(0.5 + 1e-12), c);
+}

@@ -213,6 +213,14 @@ pub struct ResidualConfig {
     /// more), so without it the corrections learnt on disturbed floors carried onto the flat
     /// one (issue 20, stage 2: 0.5–1 % above the table at 0.3–0.6 m/s).
     pub deadband: f64,
+    /// Measure each window against the table's own walk over the same window, from the same
+    /// state (a copy of the simulation, the filter and the controller, the same pushes and
+    /// sensor noise): the energy, tracking and manipulability terms become the policy's minus
+    /// the table's ([`paired_reward_terms`]). A correction the table does not need earns
+    /// exactly 0 instead of the window's own ±1–3 % of CoT noise, which the plain reward left
+    /// PPO to average out (issue 20). Costs a second simulation of every window. false: the
+    /// plain reward (every policy trained before it).
+    pub paired: bool,
     pub rewards: ResidualRewards,
     /// The table itself, read from `table_file` when a config file is loaded
     /// ([`ResidualConfig::read_table`]) and kept in a policy file's config, so that a policy
@@ -227,6 +235,7 @@ impl Default for ResidualConfig {
             table_file: "tables/a1_free.toml".into(),
             bounds: ResidualBounds::default(),
             deadband: 0.0,
+            paired: false,
             rewards: ResidualRewards::default(),
             table: None,
         }
@@ -747,6 +756,32 @@ pub fn residual_reward_terms(
     [energy, tracking, manipulability, 0.0]
 }
 
+/// The paired form's reward terms ([`ResidualConfig::paired`]): the policy's window `m` and the
+/// table's window `m_table` from the same state, each scored by [`residual_reward_terms`], and
+/// the difference kept. A fall of the policy costs `fall` whatever the table did; where only the
+/// table fell the window has nothing to compare and earns 0.
+pub fn paired_reward_terms(
+    w: &ResidualRewards,
+    m: &WalkMetrics,
+    m_table: &WalkMetrics,
+    speed_mps: f64,
+    table: (f64, f64),
+    fell: bool,
+    table_fell: bool,
+) -> [f64; 4] {
+    if fell || table_fell {
+        return [0.0, 0.0, 0.0, if fell { -w.fall } else { 0.0 }];
+    }
+    let policy = residual_reward_terms(w, m, speed_mps, table, false);
+    let baseline = residual_reward_terms(w, m_table, speed_mps, table, false);
+    [
+        policy[0] - baseline[0],
+        policy[1] - baseline[1],
+        policy[2] - baseline[2],
+        0.0,
+    ]
+}
+
 pub struct EempRlEnv {
     config: EempRlConfig,
     /// The nominal robot (the controller's model).
@@ -864,6 +899,32 @@ impl EempRlEnv {
             },
             ..Default::default()
         };
+    }
+
+    /// The table's walk over `steps` physics steps from the state in `loop_` and `controller`
+    /// (copies taken before the policy's window): its metrics and whether it fell.
+    fn table_window(
+        &self,
+        mut loop_: ClosedLoop,
+        mut controller: EempController,
+        steps: usize,
+    ) -> (WalkMetrics, bool) {
+        controller.params = self.config.initial_params_source();
+        let dt = loop_.sim().timestep_s();
+        let kin = &self.kin;
+        let mut metrics = MetricsAccumulator::default();
+        let mut fell = false;
+        for _ in 0..steps {
+            let command = self.config.command_at(loop_.elapsed_s(), self.command);
+            let out = loop_.step(&mut controller, command, &mut |r| {
+                observe_metrics(&mut metrics, kin, dt, r, &r.stance())
+            });
+            if loop_.sim_mut().take_instability() || out.fell || loop_.sim().trunk_contact() {
+                fell = true;
+                break;
+            }
+        }
+        (metrics.finish(self.mass_kg), fell)
     }
 
     fn write_obs(&self, out: &mut [f32]) {
@@ -1011,6 +1072,10 @@ impl Env for EempRlEnv {
         obs: &mut [f32],
         terms: &mut [f64],
     ) -> StepInfo {
+        let before = match &self.config.residual {
+            Some(r) if r.paired => Some((self.loop_.clone(), self.controller.clone())),
+            _ => None,
+        };
         self.controller.params = self.config.params_source(action);
         let dt = self.loop_.sim().timestep_s();
         let mut iv = Interval::default();
@@ -1056,7 +1121,16 @@ impl Env for EempRlEnv {
                 let speed = speed_sum / taken.max(1) as f64;
                 let table = r.table().metrics_at(speed).expect("validated");
                 let m = metrics.finish(self.mass_kg);
-                let terms = residual_reward_terms(&r.rewards, &m, speed, table, fell);
+                let terms = match before {
+                    // A fall costs the same whatever the table did: no second walk.
+                    Some((loop_, controller)) if !fell => {
+                        let (m_table, table_fell) = self.table_window(loop_, controller, taken);
+                        paired_reward_terms(
+                            &r.rewards, &m, &m_table, speed, table, fell, table_fell,
+                        )
+                    }
+                    _ => residual_reward_terms(&r.rewards, &m, speed, table, fell),
+                };
                 self.last_interval = Some(m);
                 terms.to_vec()
             }
