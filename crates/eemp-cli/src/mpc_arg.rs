@@ -43,7 +43,8 @@ pub struct MpcArgs {
     #[arg(long)]
     pub slow_below_friction: Option<f64>,
     /// With slip handling: the speed cap on a floor found slippery, m/s (`slip.slow_speed_mps`,
-    /// 0–10; default 0.3).
+    /// 0–10; default 0.3; refused where the cap is off: give --slow-below-friction for the trot
+    /// and the free gait).
     #[arg(long)]
     pub slow_speed: Option<f64>,
     /// The placement ellipses stay within the friction cone seen from the hip: r ≤ factor · μ̂

@@ -65,7 +65,8 @@ pub struct MethodConfig {
     /// found slippery (`slip.slow_below_friction`; absent: the gait's, the walk's 0.18; 0: never).
     #[serde(default)]
     pub slow_below_friction: Option<f64>,
-    /// EEMP with slip handling: that cap, m/s (`slip.slow_speed_mps`; absent: 0.3).
+    /// EEMP with slip handling: that cap, m/s (`slip.slow_speed_mps`; absent: 0.3; refused
+    /// where the cap is off, e.g. the trot without `slow_below_friction`).
     #[serde(default)]
     pub slow_speed_mps: Option<f64>,
     /// EEMP: the ellipses' cap by the slip detector's coefficient

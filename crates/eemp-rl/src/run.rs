@@ -492,6 +492,14 @@ impl WalkDescription {
                 slip_settings.join(", ")
             ));
         }
+        // So would a cap speed where the cap never comes on.
+        if self.slow_speed_mps.is_some() && spec.controller.slip.slow_below_friction <= 0.0 {
+            return Err(format!(
+                "--slow-speed: the speed cap on slippery floors is off for this walk \
+                 (slip.slow_below_friction = 0, the {gait}'s default or as given): set \
+                 --slow-below-friction too (allowed: (0.15, 0.25]), or drop --slow-speed"
+            ));
+        }
         spec.seed = self.sensing.seed;
         spec.state_source = self.sensing.source(&robot)?;
         spec.allow_robot_mismatch = self.allow_robot_mismatch;
@@ -743,6 +751,21 @@ mod tests {
             },
             "--hold-raise-fraction, --slip-max-speed: slip handling is off for this walk",
         );
+        // A cap speed where the cap is off (the trot's default) would be ignored.
+        bad(
+            WalkDescription {
+                slow_speed_mps: Some(0.2),
+                ..Default::default()
+            },
+            "--slow-speed: the speed cap on slippery floors is off for this walk",
+        );
+        assert!(WalkDescription {
+            slow_speed_mps: Some(0.2),
+            slow_below_friction: Some(0.2),
+            ..Default::default()
+        }
+        .build()
+        .is_ok());
         #[cfg(feature = "learning")]
         bad(
             WalkDescription {
