@@ -148,7 +148,7 @@ struct Evaluation {
 
 #[cfg(feature = "learning")]
 /// The exact bits of a candidate: a replayed search proposes bit-identical ones.
-fn key(x: &DVector<f64>) -> String {
+fn key(x: &[f64]) -> String {
     x.iter().map(|v| format!("{:016x}", v.to_bits())).collect()
 }
 
@@ -301,28 +301,17 @@ pub fn train_cmaes(
                 // Each entry's generations and episodes are numbered apart from the others'.
                 let offset = k * ENTRY_GENERATIONS;
                 let budget = config.total_env_steps / n as u64;
-                if budget == 0 {
-                    // A budget below one decision per entry (a smoke run): nothing searched,
-                    // the table as it was.
-                    write_table(
-                        &opts.out.join("table.toml"),
-                        &corrected_table(&table, &bounds, &x),
-                        config,
-                        &run.log,
-                    )?;
-                    continue;
-                }
-                let found = run.search(&at_speed, &x, &slots, offset, budget, on_generation)?;
-                let v = config.cmaes.validation_episodes;
-                let keep = match v {
-                    0 => true,
-                    _ => {
-                        // Fresh episodes after the search's, the same for both.
-                        let g = offset + ENTRY_GENERATIONS - 1;
-                        let episodes = EpisodeSet {
-                            generation: g,
-                            count: v,
-                        };
+                // A budget below one decision per entry (a smoke run): nothing searched, the
+                // entry stays the table's.
+                if budget > 0 {
+                    let found = run.search(&at_speed, &x, &slots, offset, budget, on_generation)?;
+                    let v = config.cmaes.validation_episodes;
+                    // Fresh episodes after the search's, the same for both.
+                    let episodes = EpisodeSet {
+                        generation: offset + ENTRY_GENERATIONS - 1,
+                        count: v,
+                    };
+                    let keep = v == 0 || {
                         let base = run.evaluate_cached(&at_speed, &x, episodes)?;
                         let corrected = run.evaluate_cached(&at_speed, &found, episodes)?;
                         let keep = corrected.fitness > base.fitness;
@@ -334,10 +323,10 @@ pub fn train_cmaes(
                         .and_then(|_| validation.flush())
                         .map_err(|e| format!("cannot write validation.csv: {e}"))?;
                         keep
+                    };
+                    if keep {
+                        x = found;
                     }
-                };
-                if keep {
-                    x = found;
                 }
                 write_table(
                     &opts.out.join("table.toml"),
@@ -400,7 +389,7 @@ impl Run<'_> {
         x: &[f64],
         episodes: EpisodeSet,
     ) -> Result<Evaluation, String> {
-        let k = (episodes.generation, key(&DVector::from_column_slice(x)));
+        let k = (episodes.generation, key(x));
         if let Some(e) = self.cache.get(&k) {
             self.replayed_wall = self.replayed_wall.max(e.1);
             return Ok(e.0);
@@ -448,7 +437,7 @@ impl Run<'_> {
         let objective = |y: &DVector<f64>| -> f64 {
             let g = generation.load(Ordering::SeqCst);
             let x = embed(y.as_slice());
-            let k = key(&DVector::from_column_slice(&x));
+            let k = key(&x);
             if let Some(e) = cache.get(&(g, k.clone())) {
                 fresh.lock().expect("no panic").insert((g, k), e.0);
                 return e.0.fitness;

@@ -352,6 +352,41 @@ fn the_walks_slip_handling_rests_at_the_nominal_coefficient_above_0_6_m_per_s() 
 }
 
 #[test]
+fn on_a_floor_it_finds_slippery_the_walk_slows_to_its_cap() {
+    // The walk with its table commanded 0.5 m/s on a floor of 0.2 (ground truth): slips take
+    // slip handling's coefficient below 0.18, and the planner's reference is capped at 0.3 m/s.
+    let tables = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tables");
+    let mut s = spec(Gait::Walk, 0.5, 5.0, PlannerParams::default());
+    s.params_table = Some(
+        eemp_core::planner::params_table::ParamsTable::load(&tables.join("a1_walk.toml")).unwrap(),
+    );
+    s.floor_friction = Some(0.2);
+    s.seed = 1;
+    let cap = s.controller.slip.slow_speed_mps;
+    let reference = |s: &WalkSpec| {
+        let mut last = 0.0;
+        let run = run_walk(&RobotConfig::a1(), s, |r| {
+            if let Some(p) = r.plan {
+                last = p.body_horizon[0]
+                    .v_world
+                    .x
+                    .hypot(p.body_horizon[0].v_world.y);
+            }
+        })
+        .unwrap();
+        (run, last)
+    };
+    let (slowed, v) = reference(&s);
+    assert!(slowed.stats.slowed_steps > 0);
+    assert!(v <= cap + 1e-6, "reference {v} m/s at the end, cap {cap}");
+    // Without the cap the reference reaches the command.
+    s.controller.slip.slow_below_friction = 0.0;
+    let (free, v) = reference(&s);
+    assert_eq!(free.stats.slowed_steps, 0);
+    assert!(v > 0.45, "reference {v} m/s without the cap");
+}
+
+#[test]
 fn the_free_gait_pairs_its_swings_and_walks_a_floor_of_friction_0_3_from_rest() {
     let run = |pairing: FreePairing, seed: u64| {
         // Without slip handling (on by default since issue 22, and enough on its own for
