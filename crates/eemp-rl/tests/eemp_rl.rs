@@ -519,7 +519,22 @@ fn cmaes_per_entry_keeps_only_the_corrections_that_beat_the_table_and_resumes() 
         e.contains("cmaes.validation_episodes") && e.contains("per_entry"),
         "{e}"
     );
+    config.cmaes.validation_episodes = 0;
+    config.cmaes.nominal_episodes = 1;
+    let e = config.validate().unwrap_err().to_string();
+    assert!(
+        e.contains("cmaes.nominal_episodes") && e.contains("per_entry"),
+        "{e}"
+    );
     config.cmaes.per_entry = true;
+    config.cmaes.nominal_cot_tolerance = 1.5;
+    let e = config.validate().unwrap_err().to_string();
+    assert!(
+        e.contains("cmaes.nominal_cot_tolerance") && e.contains("1.5"),
+        "{e}"
+    );
+    config.cmaes.nominal_cot_tolerance = 0.01;
+    config.cmaes.validation_episodes = 1;
     let table = ParamsTable::load(&repo_file("tables/a1_free.toml")).unwrap();
     let n = table.entries.len();
     // Two generations of 4 candidates × 1 episode of 2 decisions per entry.
@@ -540,7 +555,9 @@ fn cmaes_per_entry_keeps_only_the_corrections_that_beat_the_table_and_resumes() 
     };
     let (found, gens) = run(false);
     assert!(gens >= 2 * n, "{gens} generations");
-    // One validation row per entry; an entry not kept is the table's, bit for bit.
+    // One validation row per entry: kept where the correction beat the table's return on the
+    // disturbed episodes and stayed within 1 % of its energy per distance on the nominal ones,
+    // without a fall; an entry not kept is the table's, bit for bit.
     let validation = std::fs::read_to_string(dir.path().join("validation.csv")).unwrap();
     let rows: Vec<Vec<String>> = validation
         .lines()
@@ -549,9 +566,16 @@ fn cmaes_per_entry_keeps_only_the_corrections_that_beat_the_table_and_resumes() 
         .collect();
     assert_eq!(rows.len(), n);
     for (k, row) in rows.iter().enumerate() {
-        let (base, corrected): (f64, f64) = (row[3].parse().unwrap(), row[4].parse().unwrap());
-        let kept = row[5] == "true";
-        assert_eq!(kept, corrected > base, "entry {k}: {row:?}");
+        let f = |i: usize| row[i].parse::<f64>().unwrap();
+        let (base, corrected) = (f(3), f(4));
+        let (nominal_base, nominal_corrected, nominal_falls) = (f(6), f(7), f(8));
+        assert!(nominal_base > 0.0 && nominal_corrected > 0.0, "{row:?}");
+        let kept = row[9] == "true";
+        assert_eq!(
+            kept,
+            corrected > base && nominal_corrected <= nominal_base * 1.01 && nominal_falls == 0.0,
+            "entry {k}: {row:?}"
+        );
         let same = found.entries[k].params() == table.entries[k].params();
         assert!(kept || same, "entry {k} not kept but changed");
     }
