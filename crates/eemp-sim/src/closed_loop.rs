@@ -260,6 +260,15 @@ pub struct StepOutcome {
     pub fell: bool,
 }
 
+/// Why an episode ends after a step ([`ClosedLoop::episode_end`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum EpisodeEnd {
+    /// MuJoCo reported an unstable simulation (counted as a fall too).
+    Unstable,
+    /// The fall limits were crossed, or the trunk touched the floor.
+    Fell,
+}
+
 impl ClosedLoop {
     /// Starts an episode from the simulation's current state, on ground truth.
     pub fn new(sim: Simulation, pushes: &[Push], limits: FallLimits) -> Self {
@@ -392,6 +401,20 @@ impl ClosedLoop {
     /// Episode time, s.
     pub fn elapsed_s(&self) -> f64 {
         self.sim.time_s() - self.t_start
+    }
+
+    /// Whether the episode ends after a step that returned `out`: an instability (taken from
+    /// the simulation, so it is reported once), else a fall or a trunk contact. The learning
+    /// tasks' one test of the end, so that every environment and the paired table walk stop
+    /// on the same conditions.
+    pub fn episode_end(&mut self, out: StepOutcome) -> Option<EpisodeEnd> {
+        if self.sim.take_instability() {
+            Some(EpisodeEnd::Unstable)
+        } else if out.fell || self.sim.trunk_contact() {
+            Some(EpisodeEnd::Fell)
+        } else {
+            None
+        }
     }
 
     /// One physics step: state → controller → observer → torques → physics → pushes.

@@ -38,7 +38,7 @@ use eemp_core::planner::params::{table_i, TABLE_I_RANGES};
 use eemp_core::planner::params_table::ParamsTable;
 use eemp_core::planner::{FreePairing, Gait, PlannerConfig, PlannerParams, VelocityCommand};
 use eemp_core::robot::RobotConfig;
-use eemp_sim::closed_loop::{ClosedLoop, FallLimits, Push, StepRecord};
+use eemp_sim::closed_loop::{ClosedLoop, EpisodeEnd, FallLimits, Push, StepRecord};
 use eemp_sim::terrain::{FrictionPatch, Rough, Terrain};
 use eemp_sim::walk::{
     eemp_controller, observe_metrics, reset_to_start, simulated_world, ModelError, StartPose,
@@ -919,7 +919,7 @@ impl EempRlEnv {
             let out = loop_.step(&mut controller, command, &mut |r| {
                 observe_metrics(&mut metrics, kin, dt, r, &r.stance())
             });
-            if loop_.sim_mut().take_instability() || out.fell || loop_.sim().trunk_contact() {
+            if loop_.episode_end(out).is_some() {
                 fell = true;
                 break;
             }
@@ -1101,13 +1101,16 @@ impl Env for EempRlEnv {
                 *last_tau = r.output.torques;
             });
             taken = k + 1;
-            if self.loop_.sim_mut().take_instability() {
-                (fell, unstable) = (true, true);
-                break;
-            }
-            if out.fell || self.loop_.sim().trunk_contact() {
-                fell = true;
-                break;
+            match self.loop_.episode_end(out) {
+                Some(EpisodeEnd::Unstable) => {
+                    (fell, unstable) = (true, true);
+                    break;
+                }
+                Some(EpisodeEnd::Fell) => {
+                    fell = true;
+                    break;
+                }
+                None => {}
             }
             if touchdowns && landed && taken >= self.min_substeps {
                 break;

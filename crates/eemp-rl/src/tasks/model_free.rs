@@ -18,7 +18,7 @@ use eemp_core::leg::{Leg, LegMap};
 use eemp_core::planner::VelocityCommand;
 use eemp_core::robot::RobotConfig;
 use eemp_sim::backend::{build_model, SimSnapshot};
-use eemp_sim::closed_loop::{ClosedLoop, FallLimits, Push};
+use eemp_sim::closed_loop::{ClosedLoop, EpisodeEnd, FallLimits, Push};
 use eemp_sim::mjcf::SceneExtras;
 use eemp_sim::walk::StartPose;
 use eemp_sim::Simulation;
@@ -760,11 +760,10 @@ pub(crate) fn run_period(
 ) -> (bool, bool) {
     for _ in 0..substeps {
         let out = loop_.step(controller, command, observer);
-        if loop_.sim_mut().take_instability() {
-            return (true, true);
-        }
-        if out.fell || loop_.sim().trunk_contact() {
-            return (true, false);
+        match loop_.episode_end(out) {
+            Some(EpisodeEnd::Unstable) => return (true, true),
+            Some(EpisodeEnd::Fell) => return (true, false),
+            None => {}
         }
     }
     (false, false)
