@@ -82,6 +82,7 @@ pub struct HwArgs {
     /// eemp, model-free, imitation or eemp-rl (with --policy).
     #[arg(long, default_value = "eemp")]
     pub controller: String,
+    /// Policy file of a learned --controller (e.g. policies/a1_model_free.safetensors).
     #[arg(long)]
     pub policy: Option<PathBuf>,
     /// EEMP's gait and per-speed table (default tables/<robot>_<gait>.toml).
@@ -369,6 +370,15 @@ pub fn run_hw_cmd(args: &HwArgs) -> Result<(), String> {
             serde_json::to_string_pretty(&summary).expect("serialises"),
         )
         .map_err(|e| format!("cannot write summary.json: {e}"))?;
+    }
+    // A run that never heard from the robot did nothing: say so rather than end as a success.
+    if !args.dry_run && report.states == 0 {
+        return Err(format!(
+            "no state arrived from the robot in {} s ({}): is it on, reachable and in low-level \
+             mode? (summary.json says what was sent)",
+            args.duration,
+            link_json(&opts.transport)
+        ));
     }
     Ok(())
 }

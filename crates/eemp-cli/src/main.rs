@@ -181,6 +181,11 @@ fn main() {
             robot,
             what: BenchCommand::Mpc { solves, horizon },
         } => (|| {
+            if !(1..=1_000_000).contains(&solves) {
+                return Err(format!(
+                    "--solves {solves} is out of range: allowed [1, 1000000]"
+                ));
+            }
             if !(2..=30).contains(&horizon) {
                 return Err(format!(
                     "--horizon {horizon} is out of range: allowed [2, 30]"
@@ -238,17 +243,20 @@ fn main() {
         Command::Bench {
             robot,
             what: BenchCommand::Estimator { updates },
-        } => eemp_cli::robot_arg::load_robot(robot.as_deref())
-            .and_then(|robot| eemp_cli::bench_estimator::bench_estimator(updates.max(1), &robot))
-            .map(|r| {
-                println!(
-                    "Kalman filter update {:.2} µs, bare MuJoCo step {:.2} µs: {:.2} bare steps",
-                    r.update_us,
-                    r.mujoco_step_us,
-                    r.ratio()
-                );
-                println!("{}", r.json_line());
-            }),
+        } => match updates {
+            0 => Err("--updates 0 is out of range: allowed [1, ∞)".to_string()),
+            n => eemp_cli::robot_arg::load_robot(robot.as_deref())
+                .and_then(|robot| eemp_cli::bench_estimator::bench_estimator(n, &robot)),
+        }
+        .map(|r| {
+            println!(
+                "Kalman filter update {:.2} µs, bare MuJoCo step {:.2} µs: {:.2} bare steps",
+                r.update_us,
+                r.mujoco_step_us,
+                r.ratio()
+            );
+            println!("{}", r.json_line());
+        }),
         #[cfg(not(feature = "learning"))]
         Command::Bench {
             what: BenchCommand::Rl(_),
@@ -271,5 +279,16 @@ fn main() {
     if let Err(message) = result {
         eprintln!("error: {message}");
         std::process::exit(2);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    /// clap's own checks of the definitions (in a debug build): every id an option names, such
+    /// as `--run`'s list of the options a run file replaces, exists.
+    #[test]
+    fn the_command_line_definition_is_consistent() {
+        use clap::CommandFactory;
+        super::Cli::command().debug_assert();
     }
 }

@@ -24,6 +24,7 @@ pub struct ReplayArgs {
     /// The video to write (animated GIF).
     #[arg(long)]
     pub video: Option<PathBuf>,
+    /// The robot file the walk ran (default: the shipped A1); give the same one the walk had.
     #[arg(long)]
     pub robot: Option<PathBuf>,
     #[command(flatten)]
@@ -47,6 +48,26 @@ pub fn run(args: &ReplayArgs) -> Result<(), String> {
         return Err("replay needs --video FILE.gif and/or --rerun FILE.rrd (or --rerun-connect/--rerun-serve)".into());
     }
     let robot = crate::robot_arg::load_robot(args.robot.as_deref())?;
+    // A trace drawn on another robot's body would be wrong without a word: the walk's summary
+    // names the robot it ran (its physics hash too).
+    if let Some(walked) = std::fs::read_to_string(args.dir.join("summary.json"))
+        .ok()
+        .and_then(|s| serde_json::from_str::<serde_json::Value>(&s).ok())
+        .and_then(|s| s["robot"]["physics_hash"].as_str().map(str::to_string))
+    {
+        let ours = robot.id();
+        if walked != ours.physics_hash {
+            return Err(format!(
+                "{} was walked by another robot than {} (physics {walked}, this one's {}): give \
+                 the walk's robot file with --robot",
+                args.dir.display(),
+                args.robot
+                    .as_ref()
+                    .map_or("the shipped A1".to_string(), |p| p.display().to_string()),
+                ours.physics_hash
+            ));
+        }
+    }
     let trace = args.dir.join("trace.csv");
     let mut rerun_done = false;
     if args.rerun.wanted() && !args.from_trace {

@@ -48,6 +48,7 @@ pub struct TeleopArgs {
     pub robot: crate::robot_arg::RobotArgs,
     #[command(flatten)]
     pub rerun: crate::rerun_arg::RerunArgs,
+    /// Output folder (summary.json, trace.csv, teleop.png).
     #[arg(long)]
     pub out: PathBuf,
 }

@@ -10,7 +10,8 @@ use std::path::{Path, PathBuf};
 
 #[derive(clap::Args, Debug)]
 pub struct TrainArgs {
-    /// model-free (the paper's RL baseline), imitation (its motion-imitation baseline) or
+    /// model-free (the paper's RL baseline), imitation (its motion-imitation baseline), eemp-rl
+    /// (the paper's learned planner parameters: PPO or CMA-ES, per the config's `optimizer`) or
     /// cart-pole (PPO's test task).
     #[arg(long)]
     pub task: String,

@@ -6,6 +6,52 @@ use eemp_core::planner::PlannerConfig;
 use eemp_rl::run::WalkDescription;
 use std::path::PathBuf;
 
+/// The options a run file replaces (clap's argument ids, the fields' names).
+const RUN_FILE_REPLACES: [&str; 42] = [
+    "controller",
+    "policy",
+    "estimator",
+    "ideal_sensors",
+    "seed",
+    "kf_velocity_jump",
+    "kf_leg_outlier",
+    "gait",
+    "speed",
+    "lateral",
+    "yaw_rate",
+    "profile",
+    "duration",
+    "params",
+    "params_table",
+    "table_ii",
+    "progress_factor",
+    "retarget_swing",
+    "first_step_on_command",
+    "preview_swings",
+    "max_accel",
+    "scenario",
+    "friction",
+    "push_at",
+    "push_dv",
+    "free_pair_tolerance",
+    "free_support_margin",
+    "free_unpaired",
+    "mpc_friction",
+    "no_adapt_friction",
+    "adapt_friction",
+    "initial_friction",
+    "hold_cap_after_slip",
+    "hold_raise_fraction",
+    "slip_max_speed",
+    "slow_below_friction",
+    "slow_speed",
+    "ellipse_friction_factor",
+    "mpc_horizon",
+    "mpc_period",
+    "robot",
+    "allow_robot_mismatch",
+];
+
 #[derive(clap::Args, Debug)]
 // `--speed -0.3` is a backward command and `--duration -1` must reach the range check.
 #[command(allow_negative_numbers = true)]
@@ -75,8 +121,9 @@ pub struct WalkArgs {
     #[arg(long)]
     pub video: Option<PathBuf>,
     /// A run file (TOML: the fields of `eemp_rl::run::WalkDescription`) in place of the walk's
-    /// options; only the outputs (--out, --video, --trace-hz, --rerun…) still apply.
-    #[arg(long, value_name = "FILE")]
+    /// options; only the outputs (--out, --video, --trace-hz, --rerun…) still apply, and a walk
+    /// option given beside it is refused (it would be ignored).
+    #[arg(long, value_name = "FILE", conflicts_with_all = RUN_FILE_REPLACES)]
     pub run: Option<PathBuf>,
     /// Output folder.
     #[arg(long, default_value = "out/walk")]

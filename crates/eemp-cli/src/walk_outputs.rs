@@ -36,6 +36,17 @@ pub fn walk(d: &WalkDescription, o: &WalkOutputs) -> Result<(), String> {
     // Before anything is written: a bad recording path or an absent viewer stops here.
     let recording_name = format!("walk: {} at {} m/s", built.method(), d.speed_mps);
     let mut recorder = o.rerun.open(&recording_name, &robot, &spec)?;
+    // The video's folder too, so that a path that cannot be written fails before the walk.
+    if let Some(parent) = o.video.as_ref().and_then(|v| v.parent()) {
+        if !parent.as_os_str().is_empty() {
+            std::fs::create_dir_all(parent).map_err(|e| {
+                format!(
+                    "--video: cannot create the folder {}: {e}",
+                    parent.display()
+                )
+            })?;
+        }
+    }
     create_dir(&o.out).map_err(|e| e.to_string())?;
     let mut header: Vec<String> = [
         "time_s",
@@ -199,7 +210,8 @@ pub fn walk(d: &WalkDescription, o: &WalkOutputs) -> Result<(), String> {
         "controller": d.controller,
         "policy": d.policy.as_ref().map(|p| p.display().to_string()),
         "gait": if is_eemp { Some(gait.to_string()) } else { None },
-        "speed_mps": d.speed_mps,
+        // With a profile the command is the profile's (--speed is not used).
+        "speed_mps": d.profile.is_none().then_some(d.speed_mps),
         "profile": d.profile.as_ref().map(|p| p.display().to_string()),
         // Constant parameters given (--params or Table II); what actually ran, per commanded
         // speed, is under params_in_force (a table's, EEMP-RL's choices).
@@ -220,7 +232,9 @@ pub fn walk(d: &WalkDescription, o: &WalkOutputs) -> Result<(), String> {
             .then_some(spec.planner.free_pairing),
         "kf": spec.state_source.kf_config(),
         "duration_s": st.sim_time_s,
-        "metrics_window_s": [spec.metrics_start_s, st.sim_time_s],
+        // None when the walk ended (a fall) before the window opened: no metrics.
+        "metrics_window_s": (st.sim_time_s > spec.metrics_start_s)
+            .then_some([spec.metrics_start_s, st.sim_time_s]),
         "fell": st.fell,
         "fell_at_s": st.fell_at_s,
         "distance_m": m.distance_m,

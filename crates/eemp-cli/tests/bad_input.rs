@@ -721,3 +721,140 @@ fn a_run_file_walks_as_its_options_would_and_a_bad_one_is_named() {
     );
     assert!(!wrote);
 }
+
+#[test]
+fn ignored_options_a_silent_robot_link_and_a_replay_on_another_robot_are_refused() {
+    let dir = scratch("ignored");
+    let repo = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let file = |p: &str| repo.join(p).to_str().unwrap().to_string();
+    let sensors = dir.join("sensors.toml");
+    std::fs::write(&sensors, "[sensors]\n").unwrap();
+    let run = dir.join("run.toml");
+    std::fs::write(&run, "gait = \"trot\"\nspeed_mps = 0.3\nduration_s = 1.0\n").unwrap();
+    let (sensors, run) = (sensors.to_str().unwrap(), run.to_str().unwrap());
+    let (mf, rl) = (
+        file("policies/a1_model_free.safetensors"),
+        file("policies/a1_eemp_rl.safetensors"),
+    );
+    let (trot, slippery) = (
+        file("tables/a1_trot.toml"),
+        file("scenarios/slippery-0.2.toml"),
+    );
+    let bad_video = dir.join("a-file");
+    std::fs::write(&bad_video, "").unwrap();
+    let bad_video = bad_video.join("walk.gif");
+    let bad_video = bad_video.to_str().unwrap();
+    // (arguments, what the message must contain)
+    let cases: [(&[&str], &[&str]); 8] = [
+        (
+            &[
+                "walk",
+                "--controller",
+                "model-free",
+                "--policy",
+                &mf,
+                "--params-table",
+                &trot,
+            ],
+            &["--params-table", "--controller eemp, not model-free"],
+        ),
+        (
+            &[
+                "walk",
+                "--controller",
+                "eemp-rl",
+                "--policy",
+                &rl,
+                "--gait",
+                "walk",
+            ],
+            &["--gait", "--controller eemp, not eemp-rl"],
+        ),
+        (&["walk", "--ideal-sensors"], &["--ideal-sensors", "kf"]),
+        (
+            &[
+                "walk",
+                "--estimator",
+                "kf",
+                "--ideal-sensors",
+                "--scenario",
+                sensors,
+            ],
+            &["--ideal-sensors", "[sensors]", "sensors.toml"],
+        ),
+        (
+            &["walk", "--friction", "1.5", "--scenario", &slippery],
+            &["--friction 1.5", "floor_friction 0.2", "slippery-0.2.toml"],
+        ),
+        (
+            &["walk", "--push-dv", "0.5"],
+            &["--push-dv 0.5", "--push-at"],
+        ),
+        // A walk option beside a run file would be ignored (clap refuses the pair).
+        (
+            &["walk", "--run", run, "--speed", "0.5"],
+            &["--run", "--speed"],
+        ),
+        (
+            &["walk", "--duration", "1", "--video", bad_video],
+            &["--video", "a-file"],
+        ),
+    ];
+    for (args, needles) in cases {
+        let (code, stderr, wrote) = eemp(&dir, args);
+        assert_eq!(code, Some(2), "{args:?}: {stderr}");
+        for n in needles {
+            assert!(stderr.contains(n), "{args:?}: '{n}' not in: {stderr}");
+        }
+        assert!(!wrote, "{args:?} wrote its output folder");
+    }
+    // A hardware run that never hears from the robot is an error (its summary says what was
+    // sent), not a success.
+    let (code, stderr, _) = eemp(
+        &dir,
+        &[
+            "hw",
+            "--address",
+            "127.0.0.1:9",
+            "--bind",
+            "127.0.0.1:0",
+            "--duration",
+            "0.2",
+            "--params-table",
+            &trot,
+        ],
+    );
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(stderr.contains("no state arrived"), "{stderr}");
+    // A replay on another robot's body than the walk's is refused, naming both.
+    let walked = dir.join("walked");
+    let o = Command::new(env!("CARGO_BIN_EXE_eemp"))
+        .args([
+            "walk",
+            "--duration",
+            "0.3",
+            "--params-table",
+            &trot,
+            "--out",
+        ])
+        .arg(&walked)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let gif = dir.join("replay.gif");
+    let o = Command::new(env!("CARGO_BIN_EXE_eemp"))
+        .arg("replay")
+        .arg(&walked)
+        .args(["--robot", &file("robots/go2.toml"), "--video"])
+        .arg(&gif)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("another robot") && stderr.contains("go2.toml"),
+        "{stderr}"
+    );
+    assert!(!gif.exists());
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -54,6 +54,12 @@ impl Default for Sensing {
 
 impl Sensing {
     pub fn source(&self, robot: &RobotConfig) -> Result<StateSource, String> {
+        if self.ideal_sensors && self.estimator != "kf" {
+            return Err(format!(
+                "--ideal-sensors is for the kf estimator, not {} (ground truth has no sensors)",
+                self.estimator
+            ));
+        }
         let mut source = state_source(&self.estimator, self.ideal_sensors, self.seed, robot)?;
         with_kf_options(
             &mut source,
@@ -310,7 +316,8 @@ impl WalkDescription {
             ("eemp", None) => Driver::Eemp,
             ("eemp", Some(_)) => {
                 return Err(
-                    "--policy is for a learned --controller (model-free, imitation), not eemp"
+                    "--policy is for a learned --controller (model-free, imitation, eemp-rl), \
+                     not eemp"
                         .into(),
                 )
             }
@@ -336,6 +343,26 @@ impl WalkDescription {
                 "--free-unpaired, --free-pair-tolerance and --free-support-margin are for \
                  --controller eemp --gait free, not --controller {} --gait {gait} (EEMP-RL runs \
                  the rule it was trained with)",
+                self.controller
+            ));
+        }
+        // A policy chooses its own gait and parameters (EEMP-RL reads the table it was trained
+        // on): the planner's options would be ignored, so they are refused.
+        let planner_options: Vec<&str> = [
+            ("--gait", self.gait != WalkDescription::default().gait),
+            ("--params", self.params.is_some()),
+            ("--params-table", self.params_table.is_some()),
+            ("--table-ii", self.table_ii),
+            ("--progress-factor", self.progress_factor.is_some()),
+        ]
+        .into_iter()
+        .filter_map(|(flag, set)| set.then_some(flag))
+        .collect();
+        if !is_eemp && !planner_options.is_empty() {
+            return Err(format!(
+                "{}: the planner's gait and parameters are for --controller eemp, not {} (a \
+                 policy walks the gait and parameters it was trained with)",
+                planner_options.join(", "),
                 self.controller
             ));
         }
@@ -403,6 +430,15 @@ impl WalkDescription {
         let params_table = match &params_table_path {
             Some(p) => {
                 let t = ParamsTable::load(p).map_err(|e| e.to_string())?;
+                if t.gait != gait {
+                    return Err(format!(
+                        "{}: is a table for gait {} but the walk uses {gait} (give --gait {} or \
+                         another table)",
+                        p.display(),
+                        t.gait,
+                        t.gait
+                    ));
+                }
                 if !self.allow_robot_mismatch {
                     t.robot_id()
                         .check(&robot, &p.display().to_string())
@@ -462,6 +498,12 @@ impl WalkDescription {
         }
         if let Some(mu) = self.mpc_friction {
             spec.controller.mpc.friction_coefficient = mu;
+            if let Some(floor) = self.floor_friction.filter(|f| mu > *f) {
+                eprintln!(
+                    "note: --mpc-friction {mu} is above the floor's friction {floor}: the MPC may \
+                     ask the feet for more than the floor gives"
+                );
+            }
         }
         if let Some(on) = self.adapt_friction {
             spec.controller.slip.adapt_friction = on;
@@ -510,6 +552,20 @@ impl WalkDescription {
         spec.floor_friction = self.floor_friction;
         if let Some(path) = &self.scenario {
             let sc = eemp_sim::scenario::Scenario::load(path).map_err(|e| e.to_string())?;
+            if let (Some(mu), Some(theirs)) = (self.floor_friction, sc.floor_friction) {
+                return Err(format!(
+                    "--friction {mu} and the scenario {}'s floor_friction {theirs} both set the \
+                     floor: drop one",
+                    path.display()
+                ));
+            }
+            if self.sensing.ideal_sensors && sc.sensors.is_some() {
+                return Err(format!(
+                    "--ideal-sensors and the scenario {}'s [sensors] both set the sensor noise: \
+                     drop one",
+                    path.display()
+                ));
+            }
             sc.apply(&mut spec);
             if let Some(noise) = &sc.sensors {
                 if let StateSource::Kf { sensors, .. } = &mut spec.state_source {
@@ -518,6 +574,12 @@ impl WalkDescription {
             }
         }
         spec.params_table = params_table;
+        if self.push_at_s.is_none() && self.push_dv_mps != WalkDescription::default().push_dv_mps {
+            return Err(format!(
+                "--push-dv {} needs --push-at (the time of the push)",
+                self.push_dv_mps
+            ));
+        }
         if let Some(at) = self.push_at_s {
             if !(at.is_finite() && at >= 0.0 && at < self.duration_s) {
                 return Err(format!(
