@@ -374,10 +374,13 @@ pub fn run_hw_cmd(args: &HwArgs) -> Result<(), String> {
     // A run that never heard from the robot did nothing: say so rather than end as a success.
     if !args.dry_run && report.states == 0 {
         return Err(format!(
-            "no state arrived from the robot in {} s ({}): is it on, reachable and in low-level \
-             mode? (summary.json says what was sent)",
+            "no valid state arrived from the robot in {} s ({}; {} bad datagrams, {} stale \
+             states): is it on, reachable, in low-level mode and of the robot file's kind? \
+             (summary.json says what was sent)",
             args.duration,
-            link_json(&opts.transport)
+            link_json(&opts.transport),
+            report.bad_datagrams,
+            report.stale_states
         ));
     }
     Ok(())

@@ -291,4 +291,33 @@ mod tests {
         use clap::CommandFactory;
         super::Cli::command().debug_assert();
     }
+
+    /// Every option of `eemp walk` is either an output or one that `--run FILE` replaces (and
+    /// so refuses beside it): a new walk option must join one of the two lists.
+    #[test]
+    fn every_walk_option_is_an_output_or_replaced_by_a_run_file() {
+        use clap::CommandFactory;
+        let cli = super::Cli::command();
+        let walk = cli.find_subcommand("walk").expect("walk");
+        let outputs = [
+            "out",
+            "video",
+            "trace_hz",
+            "run",
+            "rerun",
+            "rerun_connect",
+            "rerun_serve",
+            "rerun_hz",
+            "rerun_python",
+            "help",
+        ];
+        let replaced = eemp_cli::walk_cmd::RUN_FILE_REPLACES;
+        for arg in walk.get_arguments() {
+            let id = arg.get_id().as_str();
+            assert!(
+                outputs.contains(&id) || replaced.contains(&id),
+                "walk option '{id}' is neither an output nor in RUN_FILE_REPLACES"
+            );
+        }
+    }
 }

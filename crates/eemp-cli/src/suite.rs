@@ -184,7 +184,9 @@ impl MethodConfig {
                 d.free_support_check = Some(p.support_check);
             }
         }
-        d.gait = gait;
+        if self.kind == "eemp" {
+            d.gait = gait;
+        }
         d
     }
 
@@ -499,7 +501,11 @@ impl SuiteConfig {
                         ));
                     }
                     let slip = (m.adapt_friction.is_some(), "adapt_friction");
-                    for (set, key) in std::iter::once(slip).chain(m.eemp_controller_settings()) {
+                    let planner = [(m.gait.is_some(), "gait"), (m.table.is_some(), "table")];
+                    for (set, key) in std::iter::once(slip)
+                        .chain(planner)
+                        .chain(m.eemp_controller_settings())
+                    {
                         if set {
                             return Err(format!(
                                 "method '{}': {key} is for kind eemp (a policy runs with the \

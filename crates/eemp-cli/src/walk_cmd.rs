@@ -7,7 +7,7 @@ use eemp_rl::run::WalkDescription;
 use std::path::PathBuf;
 
 /// The options a run file replaces (clap's argument ids, the fields' names).
-const RUN_FILE_REPLACES: [&str; 42] = [
+pub const RUN_FILE_REPLACES: [&str; 42] = [
     "controller",
     "policy",
     "estimator",

@@ -33,10 +33,8 @@ pub fn walk(d: &WalkDescription, o: &WalkOutputs) -> Result<(), String> {
         ));
     }
     let trace_every = (1000.0 / o.trace_hz).round().max(1.0) as usize;
-    // Before anything is written: a bad recording path or an absent viewer stops here.
-    let recording_name = format!("walk: {} at {} m/s", built.method(), d.speed_mps);
-    let mut recorder = o.rerun.open(&recording_name, &robot, &spec)?;
-    // The video's folder too, so that a path that cannot be written fails before the walk.
+    // Before anything is written: a video folder that cannot be made, a bad recording path or
+    // an absent viewer stops here.
     if let Some(parent) = o.video.as_ref().and_then(|v| v.parent()) {
         if !parent.as_os_str().is_empty() {
             std::fs::create_dir_all(parent).map_err(|e| {
@@ -47,6 +45,8 @@ pub fn walk(d: &WalkDescription, o: &WalkOutputs) -> Result<(), String> {
             })?;
         }
     }
+    let recording_name = format!("walk: {} at {} m/s", built.method(), d.speed_mps);
+    let mut recorder = o.rerun.open(&recording_name, &robot, &spec)?;
     create_dir(&o.out).map_err(|e| e.to_string())?;
     let mut header: Vec<String> = [
         "time_s",

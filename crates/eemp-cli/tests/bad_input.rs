@@ -825,7 +825,7 @@ fn ignored_options_a_silent_robot_link_and_a_replay_on_another_robot_are_refused
         ],
     );
     assert_eq!(code, Some(2), "{stderr}");
-    assert!(stderr.contains("no state arrived"), "{stderr}");
+    assert!(stderr.contains("no valid state arrived"), "{stderr}");
     // A replay on another robot's body than the walk's is refused, naming both.
     let walked = dir.join("walked");
     let o = Command::new(env!("CARGO_BIN_EXE_eemp"))

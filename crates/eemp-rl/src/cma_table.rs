@@ -363,7 +363,8 @@ pub fn train_cmaes(
                             keep = corrected.fitness > base.fitness;
                             returns = [base.fitness, corrected.fitness];
                         }
-                        let (mut nominal_cost, mut nominal_falls) = ([f64::NAN; 2], 0);
+                        // Empty in validation.csv when there is no such check.
+                        let (mut nominal_cost, mut nominal_falls) = ([f64::NAN; 2], String::new());
                         if nv > 0 {
                             let mut nominal = at_speed.clone();
                             if let Some(w) = &mut nominal.eemp_rl.worlds {
@@ -377,9 +378,10 @@ pub fn train_cmaes(
                             let corrected = run.evaluate_cached(&nominal, &found, episodes)?;
                             nominal_cost =
                                 [base.energy_per_distance(), corrected.energy_per_distance()];
-                            nominal_falls = corrected.falls;
-                            // NaN (no distance) fails the check.
-                            keep &= nominal_falls == 0
+                            nominal_falls = corrected.falls.to_string();
+                            // No distance (a non-finite energy per distance) fails the check.
+                            keep &= corrected.falls == 0
+                                && nominal_cost[1].is_finite()
                                 && nominal_cost[1]
                                     <= nominal_cost[0] * (1.0 + config.cmaes.nominal_cot_tolerance);
                         }
@@ -743,9 +745,16 @@ fn read_cache(path: &Path) -> Result<Cache, String> {
         }
     };
     let mut out = HashMap::new();
-    // A row cut by a kill (the text after the last line break) is dropped: that evaluation runs
-    // again.
+    // A row cut by a kill (the text after the last line break) is dropped, from the file too, so
+    // that the rows this run appends start on a line of their own: that evaluation runs again.
     let complete = &text[..text.rfind('\n').map_or(0, |i| i + 1)];
+    if complete.len() < text.len() {
+        std::fs::OpenOptions::new()
+            .write(true)
+            .open(path)
+            .and_then(|f| f.set_len(complete.len() as u64))
+            .map_err(|e| format!("cannot cut the partial last row of {}: {e}", path.display()))?;
+    }
     for (n, line) in complete.lines().enumerate() {
         let f: Vec<&str> = line.split(',').collect();
         let bad = || format!("{} line {}: not an evaluation row", path.display(), n + 1);
@@ -791,8 +800,8 @@ fn write_table(
 ) -> Result<(), String> {
     let how = match config.cmaes.per_entry {
         false => "",
-        // Per entry the mean is that of each entry's own search, kept where it beat the table.
-        true => " (one search per entry; an entry\n# is the table's where its correction did not beat the table on fresh episodes: validation.csv)",
+        // Per entry the mean is that of each entry's own search, kept where it passed its checks.
+        true => " (one search per entry; an entry\n# is the table's where its correction did not beat the table on fresh episodes, or, with\n# cmaes.nominal_episodes, cost more energy per distance on the flat floor: validation.csv)",
     };
     let text = format!(
         "# EEMP-RL by CMA-ES (issue 20, part 6): the residual's table ({}) re-tuned, each entry\n\

@@ -346,22 +346,47 @@ impl WalkDescription {
                 self.controller
             ));
         }
-        // A policy chooses its own gait and parameters (EEMP-RL reads the table it was trained
-        // on): the planner's options would be ignored, so they are refused.
+        // A policy runs the gait, parameters, planner and MPC it was trained with (EEMP-RL
+        // reads the table and controller of its config): their options would be ignored, so
+        // they are refused.
+        let defaults = WalkDescription::default();
         let planner_options: Vec<&str> = [
-            ("--gait", self.gait != WalkDescription::default().gait),
+            ("--gait", self.gait != defaults.gait),
             ("--params", self.params.is_some()),
             ("--params-table", self.params_table.is_some()),
             ("--table-ii", self.table_ii),
             ("--progress-factor", self.progress_factor.is_some()),
+            (
+                "--retarget-swing",
+                self.retarget_swing != defaults.retarget_swing,
+            ),
+            (
+                "--first-step-on-command",
+                self.first_step_on_command != defaults.first_step_on_command,
+            ),
+            (
+                "--preview-swings",
+                self.preview_swings != defaults.preview_swings,
+            ),
+            (
+                "--max-accel",
+                self.max_accel_mps2 != defaults.max_accel_mps2,
+            ),
+            (
+                "--ellipse-friction-factor",
+                self.ellipse_friction_factor != defaults.ellipse_friction_factor,
+            ),
+            ("--mpc-friction", self.mpc_friction.is_some()),
+            ("--mpc-horizon", self.mpc_horizon.is_some()),
+            ("--mpc-period", self.mpc_period_s != defaults.mpc_period_s),
         ]
         .into_iter()
         .filter_map(|(flag, set)| set.then_some(flag))
         .collect();
         if !is_eemp && !planner_options.is_empty() {
             return Err(format!(
-                "{}: the planner's gait and parameters are for --controller eemp, not {} (a \
-                 policy walks the gait and parameters it was trained with)",
+                "{}: the planner's and the MPC's options are for --controller eemp, not {} (a \
+                 policy walks with the gait, parameters and controller it was trained with)",
                 planner_options.join(", "),
                 self.controller
             ));
@@ -498,12 +523,6 @@ impl WalkDescription {
         }
         if let Some(mu) = self.mpc_friction {
             spec.controller.mpc.friction_coefficient = mu;
-            if let Some(floor) = self.floor_friction.filter(|f| mu > *f) {
-                eprintln!(
-                    "note: --mpc-friction {mu} is above the floor's friction {floor}: the MPC may \
-                     ask the feet for more than the floor gives"
-                );
-            }
         }
         if let Some(on) = self.adapt_friction {
             spec.controller.slip.adapt_friction = on;
@@ -574,6 +593,16 @@ impl WalkDescription {
             }
         }
         spec.params_table = params_table;
+        // The floor the walk gets (option, scenario or robot file; patches aside).
+        let floor = spec
+            .floor_friction
+            .unwrap_or(robot.simulation.floor_friction);
+        if let Some(mu) = self.mpc_friction.filter(|mu| *mu > floor) {
+            eprintln!(
+                "note: --mpc-friction {mu} is above the floor's friction {floor}: the MPC may ask \
+                 the feet for more than the floor gives"
+            );
+        }
         if self.push_at_s.is_none() && self.push_dv_mps != WalkDescription::default().push_dv_mps {
             return Err(format!(
                 "--push-dv {} needs --push-at (the time of the push)",

@@ -586,6 +586,15 @@ fn cmaes_per_entry_keeps_only_the_corrections_that_beat_the_table_and_resumes() 
         std::fs::read_to_string(dir.path().join("validation.csv")).unwrap(),
         validation
     );
+    // A row cut by a kill is dropped from the cache on resume (else the next row written would
+    // run on from it and the file could not be read again): resumed twice, the same table.
+    let cache = dir.path().join("checkpoint/evaluations.csv");
+    let mut text = std::fs::read_to_string(&cache).unwrap();
+    text.push_str("3,00ab");
+    std::fs::write(&cache, &text).unwrap();
+    assert_eq!(run(true).0, found);
+    assert!(std::fs::read_to_string(&cache).unwrap().ends_with('\n'));
+    assert_eq!(run(true).0, found);
 }
 
 #[test]
