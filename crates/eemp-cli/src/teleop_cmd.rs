@@ -69,6 +69,25 @@ impl OperatorInput for Source {
     }
 }
 
+/// A plain file or another device (/dev/null) would read as no input at all, silently: a Linux
+/// joystick is a character device of the input subsystem (major number 13).
+fn check_joystick_device(path: &std::path::Path) -> Result<(), String> {
+    #[cfg(target_os = "linux")]
+    {
+        use std::os::unix::fs::{FileTypeExt, MetadataExt};
+        let meta = std::fs::metadata(path)
+            .map_err(|e| format!("cannot open joystick {}: {e}", path.display()))?;
+        let major = (meta.rdev() >> 8) & 0xfff;
+        if !meta.file_type().is_char_device() || major != 13 {
+            return Err(format!(
+                "--joystick {} is not a joystick device (a Linux joystick is /dev/input/jsN)",
+                path.display()
+            ));
+        }
+    }
+    Ok(())
+}
+
 fn spawn_joystick(path: &PathBuf, cfg: TeleopConfig) -> Result<Source, String> {
     let mut dev = std::fs::File::open(path)
         .map_err(|e| format!("cannot open joystick {}: {e}", path.display()))?;
@@ -142,6 +161,9 @@ pub fn run(args: &TeleopArgs) -> Result<(), String> {
         return Err(
             "say where commands come from: --commands FILE, --joystick DEV or --keyboard".into(),
         );
+    }
+    if let Some(dev) = &args.joystick {
+        check_joystick_device(dev)?;
     }
     let gait: eemp_core::planner::Gait = args.gait.parse()?;
     let mut spec = WalkSpec::constant(

@@ -745,7 +745,7 @@ fn ignored_options_a_silent_robot_link_and_a_replay_on_another_robot_are_refused
     let bad_video = bad_video.join("walk.gif");
     let bad_video = bad_video.to_str().unwrap();
     // (arguments, what the message must contain)
-    let cases: [(&[&str], &[&str]); 8] = [
+    let cases: [(&[&str], &[&str]); 10] = [
         (
             &[
                 "walk",
@@ -798,6 +798,19 @@ fn ignored_options_a_silent_robot_link_and_a_replay_on_another_robot_are_refused
         (
             &["walk", "--duration", "1", "--video", bad_video],
             &["--video", "a-file"],
+        ),
+        // Named by the option, not by the profile segment it becomes.
+        (&["walk", "--speed", "5"], &["--speed 5", "[-1.5, 1.5]"]),
+        (
+            &[
+                "teleop",
+                "--joystick",
+                "/dev/null",
+                "--headless",
+                "--duration",
+                "1",
+            ],
+            &["--joystick /dev/null", "not a joystick"],
         ),
     ];
     for (args, needles) in cases {

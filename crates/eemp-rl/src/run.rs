@@ -508,6 +508,22 @@ impl WalkDescription {
             ellipse_friction_factor: self.ellipse_friction_factor,
         };
         planner.validate().map_err(|e| e.to_string())?;
+        // Named by the options given (the profile's check would name its segment).
+        if self.profile.is_none() {
+            let given = [
+                ("--speed", self.speed_mps, "m/s"),
+                ("--lateral", self.lateral_mps, "m/s"),
+                ("--yaw-rate", self.yaw_rate_rps, "rad/s"),
+            ];
+            for ((flag, v, unit), [lo, hi]) in given.into_iter().zip(eemp_sim::walk::COMMAND_RANGES)
+            {
+                if !(v.is_finite() && (lo..=hi).contains(&v)) {
+                    return Err(format!(
+                        "{flag} {v} is out of range: allowed [{lo}, {hi}] {unit}"
+                    ));
+                }
+            }
+        }
         let command = VelocityCommand {
             vx_mps: self.speed_mps,
             vy_mps: self.lateral_mps,

@@ -45,6 +45,9 @@ pub struct VelocityProfile {
     pub segments: Vec<ProfileSegment>,
 }
 
+/// The commands a walk accepts: forward m/s, lateral m/s, yaw rate rad/s (each [min, max]).
+pub const COMMAND_RANGES: [[f64; 2]; 3] = [[-1.5, 1.5], [-0.5, 0.5], [-1.5, 1.5]];
+
 impl VelocityProfile {
     /// A constant command from `start_s` on.
     pub fn constant(start_s: f64, command: VelocityCommand) -> Self {
@@ -83,13 +86,24 @@ impl VelocityProfile {
                 });
             }
             last = s.start_s;
-            check_range(&format!("profile.segment[{i}].vx_mps"), s.vx_mps, -1.5, 1.5)?;
-            check_range(&format!("profile.segment[{i}].vy_mps"), s.vy_mps, -0.5, 0.5)?;
+            let [vx, vy, yaw] = COMMAND_RANGES;
+            check_range(
+                &format!("profile.segment[{i}].vx_mps"),
+                s.vx_mps,
+                vx[0],
+                vx[1],
+            )?;
+            check_range(
+                &format!("profile.segment[{i}].vy_mps"),
+                s.vy_mps,
+                vy[0],
+                vy[1],
+            )?;
             check_range(
                 &format!("profile.segment[{i}].yaw_rate_rps"),
                 s.yaw_rate_rps,
-                -1.5,
-                1.5,
+                yaw[0],
+                yaw[1],
             )?;
         }
         Ok(())
