@@ -27,6 +27,10 @@ pub struct ReplayArgs {
     /// The robot file the walk ran (default: the shipped A1); give the same one the walk had.
     #[arg(long)]
     pub robot: Option<PathBuf>,
+    /// Replay on --robot even where the walk's summary names other physics (a robot file edited
+    /// since the walk, say).
+    #[arg(long)]
+    pub allow_robot_mismatch: bool,
     #[command(flatten)]
     pub rerun: crate::rerun_arg::RerunArgs,
     /// Record from the trace only, without simulating the walk again (no planner geometry).
@@ -56,10 +60,10 @@ pub fn run(args: &ReplayArgs) -> Result<(), String> {
         .and_then(|s| s["robot"]["physics_hash"].as_str().map(str::to_string))
     {
         let ours = robot.id();
-        if walked != ours.physics_hash {
+        if walked != ours.physics_hash && !args.allow_robot_mismatch {
             return Err(format!(
                 "{} was walked by another robot than {} (physics {walked}, this one's {}): give \
-                 the walk's robot file with --robot",
+                 the walk's robot file with --robot (or --allow-robot-mismatch)",
                 args.dir.display(),
                 args.robot
                     .as_ref()

@@ -869,5 +869,20 @@ fn ignored_options_a_silent_robot_link_and_a_replay_on_another_robot_are_refused
         "{stderr}"
     );
     assert!(!gif.exists());
+    // Unless asked for.
+    let o = Command::new(env!("CARGO_BIN_EXE_eemp"))
+        .arg("replay")
+        .arg(&walked)
+        .args([
+            "--robot",
+            &file("robots/go2.toml"),
+            "--allow-robot-mismatch",
+            "--video",
+        ])
+        .arg(&gif)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(gif.exists());
     std::fs::remove_dir_all(&dir).unwrap();
 }
