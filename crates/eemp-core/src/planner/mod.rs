@@ -499,6 +499,8 @@ impl EemPlanner {
             gait::SwingInputs {
                 ellipse_values: values,
                 lone_swing_margin_m: &lone_swing_margin_m,
+                // The reference, heading frame: backwards once it points back.
+                backward: self.v_ref.x < 0.0,
             },
             previous,
             &self.config.free_pairing,
