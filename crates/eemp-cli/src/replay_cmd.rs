@@ -52,24 +52,32 @@ pub fn run(args: &ReplayArgs) -> Result<(), String> {
         return Err("replay needs --video FILE.gif and/or --rerun FILE.rrd (or --rerun-connect/--rerun-serve)".into());
     }
     let robot = crate::robot_arg::load_robot(args.robot.as_deref())?;
-    // A trace drawn on another robot's body would be wrong without a word: the walk's summary
-    // names the robot it ran (its physics hash too).
-    if let Some(walked) = std::fs::read_to_string(args.dir.join("summary.json"))
+    // The walk's summary: the robot it ran (a trace drawn on another robot's body would be wrong
+    // without a word) and its scenario's ground.
+    let summary: serde_json::Value = std::fs::read_to_string(args.dir.join("summary.json"))
         .ok()
-        .and_then(|s| serde_json::from_str::<serde_json::Value>(&s).ok())
-        .and_then(|s| s["robot"]["physics_hash"].as_str().map(str::to_string))
-    {
-        let ours = robot.id();
-        if walked != ours.physics_hash && !args.allow_robot_mismatch {
-            return Err(format!(
-                "{} was walked by another robot than {} (physics {walked}, this one's {}): give \
-                 the walk's robot file with --robot (or --allow-robot-mismatch)",
-                args.dir.display(),
-                args.robot
-                    .as_ref()
-                    .map_or("the shipped A1".to_string(), |p| p.display().to_string()),
-                ours.physics_hash
-            ));
+        .and_then(|s| serde_json::from_str(&s).ok())
+        .unwrap_or_default();
+    if let (Some(name), Some(physics_hash)) = (
+        summary["robot"]["name"].as_str(),
+        summary["robot"]["physics_hash"].as_str(),
+    ) {
+        let walked = eemp_core::robot::RobotId {
+            name: name.into(),
+            physics_hash: physics_hash.into(),
+        };
+        if !args.allow_robot_mismatch {
+            walked
+                .check(&robot, &format!("the walk in {}", args.dir.display()))
+                .map_err(|e| {
+                    format!(
+                        "{} was walked by another robot than {}: {e}",
+                        args.dir.display(),
+                        args.robot
+                            .as_ref()
+                            .map_or("the shipped A1".to_string(), |p| p.display().to_string()),
+                    )
+                })?;
         }
     }
     let trace = args.dir.join("trace.csv");
@@ -132,10 +140,6 @@ pub fn run(args: &ReplayArgs) -> Result<(), String> {
         contactcol[leg] = col(&format!("{n}_contact"))?;
     }
     // The ground the walk was on: its scenario's terrain.
-    let summary: serde_json::Value = std::fs::read_to_string(args.dir.join("summary.json"))
-        .ok()
-        .and_then(|s| serde_json::from_str(&s).ok())
-        .unwrap_or_default();
     let (terrain, friction) = match summary["scenario"].as_str() {
         Some(p) => {
             let sc = eemp_sim::scenario::Scenario::load(std::path::Path::new(p))

@@ -27,6 +27,18 @@ fn eemp(dir: &Path, args: &[&str]) -> (Option<i32>, String, bool) {
     )
 }
 
+/// Each case (arguments, what the message must contain) exits 2 naming it and writes nothing.
+fn assert_refused(dir: &Path, cases: &[(&[&str], &[&str])]) {
+    for (args, needles) in cases {
+        let (code, stderr, wrote) = eemp(dir, args);
+        assert_eq!(code, Some(2), "{args:?}: {stderr}");
+        for n in needles.iter() {
+            assert!(stderr.contains(n), "{args:?}: '{n}' not in: {stderr}");
+        }
+        assert!(!wrote, "{args:?} wrote its output folder");
+    }
+}
+
 #[test]
 fn bad_walk_and_stand_input_exits_2_names_the_value_and_writes_nothing() {
     let dir = scratch("walk");
@@ -111,14 +123,7 @@ fn bad_walk_and_stand_input_exits_2_names_the_value_and_writes_nothing() {
             ],
         ),
     ];
-    for (args, needles) in cases {
-        let (code, stderr, wrote) = eemp(&dir, args);
-        assert_eq!(code, Some(2), "{args:?}: {stderr}");
-        for n in needles {
-            assert!(stderr.contains(n), "{args:?}: '{n}' not in: {stderr}");
-        }
-        assert!(!wrote, "{args:?} wrote its output folder");
-    }
+    assert_refused(&dir, &cases);
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
@@ -216,14 +221,7 @@ fn bad_training_and_policy_input_exits_2_names_the_file_and_writes_nothing() {
             &["mpc", "eemp, model-free"],
         ),
     ];
-    for (args, needles) in cases {
-        let (code, stderr, wrote) = eemp(&dir, args);
-        assert_eq!(code, Some(2), "{args:?}: {stderr}");
-        for n in needles {
-            assert!(stderr.contains(n), "{args:?}: '{n}' not in: {stderr}");
-        }
-        assert!(!wrote, "{args:?} wrote its output folder");
-    }
+    assert_refused(&dir, &cases);
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
@@ -813,14 +811,7 @@ fn ignored_options_a_silent_robot_link_and_a_replay_on_another_robot_are_refused
             &["--joystick /dev/null", "not a joystick"],
         ),
     ];
-    for (args, needles) in cases {
-        let (code, stderr, wrote) = eemp(&dir, args);
-        assert_eq!(code, Some(2), "{args:?}: {stderr}");
-        for n in needles {
-            assert!(stderr.contains(n), "{args:?}: '{n}' not in: {stderr}");
-        }
-        assert!(!wrote, "{args:?} wrote its output folder");
-    }
+    assert_refused(&dir, &cases);
     // A hardware run that never hears from the robot is an error (its summary says what was
     // sent), not a success.
     let (code, stderr, _) = eemp(

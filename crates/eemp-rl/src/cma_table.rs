@@ -350,49 +350,12 @@ pub fn train_cmaes(
                         config.cmaes.validation_episodes,
                         config.cmaes.nominal_episodes,
                     );
-                    // Fresh episodes after the search's, the same for both.
-                    let episodes = EpisodeSet {
-                        generation: offset + ENTRY_GENERATIONS - 1,
-                        count: v,
-                    };
                     let keep = (v == 0 && nv == 0) || {
-                        let (mut keep, mut returns) = (true, [f64::NAN; 2]);
-                        if v > 0 {
-                            let base = run.evaluate_cached(&at_speed, &x, episodes)?;
-                            let corrected = run.evaluate_cached(&at_speed, &found, episodes)?;
-                            keep = corrected.fitness > base.fitness;
-                            returns = [base.fitness, corrected.fitness];
-                        }
-                        // Empty in validation.csv when there is no such check.
-                        let (mut nominal_cost, mut nominal_falls) = ([f64::NAN; 2], String::new());
-                        if nv > 0 {
-                            let mut nominal = at_speed.clone();
-                            if let Some(w) = &mut nominal.eemp_rl.worlds {
-                                w.nominal_share = 1.0;
-                            }
-                            let episodes = EpisodeSet {
-                                generation: offset + ENTRY_GENERATIONS - 2,
-                                count: nv,
-                            };
-                            let base = run.evaluate_cached(&nominal, &x, episodes)?;
-                            let corrected = run.evaluate_cached(&nominal, &found, episodes)?;
-                            nominal_cost =
-                                [base.energy_per_distance(), corrected.energy_per_distance()];
-                            nominal_falls = corrected.falls.to_string();
-                            // No distance (a non-finite energy per distance) fails the check.
-                            keep &= corrected.falls == 0
-                                && nominal_cost[1].is_finite()
-                                && nominal_cost[1]
-                                    <= nominal_cost[0] * (1.0 + config.cmaes.nominal_cot_tolerance);
-                        }
-                        writeln!(
-                            validation,
-                            "{k},{speed},{v},{:?},{:?},{nv},{:?},{:?},{nominal_falls},{keep}",
-                            returns[0], returns[1], nominal_cost[0], nominal_cost[1]
-                        )
-                        .and_then(|_| validation.flush())
-                        .map_err(|e| format!("cannot write validation.csv: {e}"))?;
-                        keep
+                        let check = run.check_entry(&at_speed, &x, &found, offset)?;
+                        writeln!(validation, "{k},{speed},{v},{}", check.csv_fields(nv))
+                            .and_then(|_| validation.flush())
+                            .map_err(|e| format!("cannot write validation.csv: {e}"))?;
+                        check.keep
                     };
                     if keep {
                         x = found;
@@ -414,6 +377,35 @@ pub fn train_cmaes(
     )
     .map_err(|e| format!("cannot write config.toml: {e}"))?;
     Ok(corrected_table(&table, &bounds, &x))
+}
+
+/// An entry's checks after its search ([`Run::check_entry`]): each pair is (table, corrected).
+#[cfg(feature = "learning")]
+struct EntryCheck {
+    /// Mean returns on the fresh disturbed episodes (NaN without them).
+    returns: [f64; 2],
+    /// Energy per distance on the fresh nominal episodes, J/m (NaN without them).
+    nominal_j_per_m: [f64; 2],
+    /// The corrected table's falls there (None without them).
+    nominal_falls: Option<usize>,
+    keep: bool,
+}
+
+#[cfg(feature = "learning")]
+impl EntryCheck {
+    /// `validation.csv`'s fields after `entry,speed_mps,episodes` (the nominal falls empty
+    /// without that check).
+    fn csv_fields(&self, nominal_episodes: usize) -> String {
+        format!(
+            "{:?},{:?},{nominal_episodes},{:?},{:?},{},{}",
+            self.returns[0],
+            self.returns[1],
+            self.nominal_j_per_m[0],
+            self.nominal_j_per_m[1],
+            self.nominal_falls.map_or(String::new(), |f| f.to_string()),
+            self.keep
+        )
+    }
 }
 
 /// Generations numbered per entry (the per-entry search's entry k uses k × this onwards; its last
@@ -473,6 +465,61 @@ impl Run<'_> {
             .map_err(|e| format!("cannot write {}: {e}", self.cache_path.display()))?;
         self.cache.insert(k, (e, wall_s));
         Ok(e)
+    }
+
+    /// The checks an entry's correction `found` must pass against `x` (the table's entry) to be
+    /// kept: a higher return on fresh disturbed episodes (`cmaes.validation_episodes`) and, on
+    /// fresh episodes in the robot file's own world (`cmaes.nominal_episodes`), no fall and an
+    /// energy per distance at most `nominal_cot_tolerance` above the table's. Both sets come
+    /// after the entry's search (`offset`), the same for both tables.
+    fn check_entry(
+        &mut self,
+        at_speed: &TrainConfig,
+        x: &[f64],
+        found: &[f64],
+        offset: usize,
+    ) -> Result<EntryCheck, String> {
+        let cfg = &self.config.cmaes;
+        let (v, nv, tolerance) = (
+            cfg.validation_episodes,
+            cfg.nominal_episodes,
+            cfg.nominal_cot_tolerance,
+        );
+        let mut check = EntryCheck {
+            returns: [f64::NAN; 2],
+            nominal_j_per_m: [f64::NAN; 2],
+            nominal_falls: None,
+            keep: true,
+        };
+        if v > 0 {
+            let episodes = EpisodeSet {
+                generation: offset + ENTRY_GENERATIONS - 1,
+                count: v,
+            };
+            let base = self.evaluate_cached(at_speed, x, episodes)?;
+            let corrected = self.evaluate_cached(at_speed, found, episodes)?;
+            check.keep = corrected.fitness > base.fitness;
+            check.returns = [base.fitness, corrected.fitness];
+        }
+        if nv > 0 {
+            let mut nominal = at_speed.clone();
+            if let Some(w) = &mut nominal.eemp_rl.worlds {
+                w.nominal_share = 1.0;
+            }
+            let episodes = EpisodeSet {
+                generation: offset + ENTRY_GENERATIONS - 2,
+                count: nv,
+            };
+            let base = self.evaluate_cached(&nominal, x, episodes)?;
+            let corrected = self.evaluate_cached(&nominal, found, episodes)?;
+            let [table, ours] = [base.energy_per_distance(), corrected.energy_per_distance()];
+            check.nominal_j_per_m = [table, ours];
+            check.nominal_falls = Some(corrected.falls);
+            // No distance (a non-finite energy per distance) fails the check.
+            check.keep &=
+                corrected.falls == 0 && ours.is_finite() && ours <= table * (1.0 + tolerance);
+        }
+        Ok(check)
     }
 
     /// CMA-ES over the components `slots` of the correction `x0` (the others held), on

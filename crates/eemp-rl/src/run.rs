@@ -27,6 +27,14 @@ use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 
+/// The flags of the options that are set, in order.
+fn set_flags<const N: usize>(options: [(&'static str, bool); N]) -> Vec<&'static str> {
+    options
+        .into_iter()
+        .filter_map(|(flag, set)| set.then_some(flag))
+        .collect()
+}
+
 /// What the controller sees.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -295,17 +303,52 @@ impl WalkDescription {
     /// The options of slip handling's own settings the run sets (not whether it is on), by
     /// their flags: the one list both refusals name.
     fn slip_settings_set(&self) -> Vec<&'static str> {
-        [
+        set_flags([
             ("--initial-friction", self.initial_friction.is_some()),
             ("--hold-cap-after-slip", self.hold_cap_after_slip.is_some()),
             ("--hold-raise-fraction", self.hold_raise_fraction.is_some()),
             ("--slip-max-speed", self.slip_max_speed_mps.is_some()),
             ("--slow-below-friction", self.slow_below_friction.is_some()),
             ("--slow-speed", self.slow_speed_mps.is_some()),
-        ]
-        .into_iter()
-        .filter_map(|(flag, set)| set.then_some(flag))
-        .collect()
+        ])
+    }
+
+    /// The planner's and the MPC's options the run sets away from their defaults, by their
+    /// flags: a policy runs the gait, parameters, planner and MPC it was trained with (EEMP-RL
+    /// reads the table and controller of its config), so for a learned controller they would be
+    /// ignored, and are refused.
+    fn eemp_options_set(&self) -> Vec<&'static str> {
+        let defaults = WalkDescription::default();
+        set_flags([
+            ("--gait", self.gait != defaults.gait),
+            ("--params", self.params.is_some()),
+            ("--params-table", self.params_table.is_some()),
+            ("--table-ii", self.table_ii),
+            ("--progress-factor", self.progress_factor.is_some()),
+            (
+                "--retarget-swing",
+                self.retarget_swing != defaults.retarget_swing,
+            ),
+            (
+                "--first-step-on-command",
+                self.first_step_on_command != defaults.first_step_on_command,
+            ),
+            (
+                "--preview-swings",
+                self.preview_swings != defaults.preview_swings,
+            ),
+            (
+                "--max-accel",
+                self.max_accel_mps2 != defaults.max_accel_mps2,
+            ),
+            (
+                "--ellipse-friction-factor",
+                self.ellipse_friction_factor != defaults.ellipse_friction_factor,
+            ),
+            ("--mpc-friction", self.mpc_friction.is_some()),
+            ("--mpc-horizon", self.mpc_horizon.is_some()),
+            ("--mpc-period", self.mpc_period_s != defaults.mpc_period_s),
+        ])
     }
 
     /// Validates everything and assembles the run; an error names the option and its range.
@@ -346,43 +389,7 @@ impl WalkDescription {
                 self.controller
             ));
         }
-        // A policy runs the gait, parameters, planner and MPC it was trained with (EEMP-RL
-        // reads the table and controller of its config): their options would be ignored, so
-        // they are refused.
-        let defaults = WalkDescription::default();
-        let planner_options: Vec<&str> = [
-            ("--gait", self.gait != defaults.gait),
-            ("--params", self.params.is_some()),
-            ("--params-table", self.params_table.is_some()),
-            ("--table-ii", self.table_ii),
-            ("--progress-factor", self.progress_factor.is_some()),
-            (
-                "--retarget-swing",
-                self.retarget_swing != defaults.retarget_swing,
-            ),
-            (
-                "--first-step-on-command",
-                self.first_step_on_command != defaults.first_step_on_command,
-            ),
-            (
-                "--preview-swings",
-                self.preview_swings != defaults.preview_swings,
-            ),
-            (
-                "--max-accel",
-                self.max_accel_mps2 != defaults.max_accel_mps2,
-            ),
-            (
-                "--ellipse-friction-factor",
-                self.ellipse_friction_factor != defaults.ellipse_friction_factor,
-            ),
-            ("--mpc-friction", self.mpc_friction.is_some()),
-            ("--mpc-horizon", self.mpc_horizon.is_some()),
-            ("--mpc-period", self.mpc_period_s != defaults.mpc_period_s),
-        ]
-        .into_iter()
-        .filter_map(|(flag, set)| set.then_some(flag))
-        .collect();
+        let planner_options = self.eemp_options_set();
         if !is_eemp && !planner_options.is_empty() {
             return Err(format!(
                 "{}: the planner's and the MPC's options are for --controller eemp, not {} (a \

@@ -512,20 +512,18 @@ fn cmaes_per_entry_keeps_only_the_corrections_that_beat_the_table_and_resumes() 
     use eemp_rl::cma_table::train_cmaes;
     use eemp_rl::train::TrainOptions;
     let mut config = tiny_cmaes_config();
-    // Validation needs the per-entry search.
-    config.cmaes.validation_episodes = 1;
-    let e = config.validate().unwrap_err().to_string();
-    assert!(
-        e.contains("cmaes.validation_episodes") && e.contains("per_entry"),
-        "{e}"
-    );
-    config.cmaes.validation_episodes = 0;
-    config.cmaes.nominal_episodes = 1;
-    let e = config.validate().unwrap_err().to_string();
-    assert!(
-        e.contains("cmaes.nominal_episodes") && e.contains("per_entry"),
-        "{e}"
-    );
+    // Both checks need the per-entry search.
+    for (name, set) in [
+        ("cmaes.validation_episodes", (1, 0)),
+        ("cmaes.nominal_episodes", (0, 1)),
+    ] {
+        (
+            config.cmaes.validation_episodes,
+            config.cmaes.nominal_episodes,
+        ) = set;
+        let e = config.validate().unwrap_err().to_string();
+        assert!(e.contains(name) && e.contains("per_entry"), "{e}");
+    }
     config.cmaes.per_entry = true;
     config.cmaes.nominal_cot_tolerance = 1.5;
     let e = config.validate().unwrap_err().to_string();
