@@ -52,6 +52,11 @@ pub struct MpcArgs {
     /// · X_z, μ̂ the slip detector's coefficient (`planner.ellipse_friction_factor`; 0: off).
     #[arg(long, default_value_t = eemp_core::planner::PlannerConfig::default().ellipse_friction_factor)]
     pub ellipse_friction_factor: f64,
+    /// Eq. (6)'s capture step (its feedback term) stays within the friction cone: at most
+    /// factor · μ̂ · X_z, μ̂ the MPC's coefficient (`planner.touchdown_friction_factor`, 0–3;
+    /// 0: the paper's unbounded step).
+    #[arg(long, default_value_t = eemp_core::planner::PlannerConfig::default().touchdown_friction_factor)]
+    pub touchdown_friction_factor: f64,
     /// MPC horizon, steps of its dt (default: MpcConfig's 10).
     #[arg(long)]
     pub mpc_horizon: Option<usize>,

@@ -73,6 +73,10 @@ pub struct MethodConfig {
     /// (`planner.ellipse_friction_factor`; absent: its default 1; 0: off).
     #[serde(default)]
     pub ellipse_friction_factor: Option<f64>,
+    /// EEMP: the capture step's cap by the MPC's coefficient
+    /// (`planner.touchdown_friction_factor`; absent: its default 0.5; 0: off).
+    #[serde(default)]
+    pub touchdown_friction_factor: Option<f64>,
     /// On the filter: its velocity-jump threshold, m/s (`KfConfig::velocity_jump_mps`; 0: off;
     /// absent: the filter's default).
     #[serde(default)]
@@ -104,7 +108,7 @@ impl MethodConfig {
     /// The controller settings of its own only an EEMP method may have (besides
     /// `adapt_friction`), each with whether it is set: a policy refuses them, and the table
     /// EEMP-RL is measured against has none.
-    pub fn eemp_controller_settings(&self) -> [(bool, &'static str); 9] {
+    pub fn eemp_controller_settings(&self) -> [(bool, &'static str); 10] {
         [
             (self.initial_friction.is_some(), "initial_friction"),
             (self.hold_cap_after_slip.is_some(), "hold_cap_after_slip"),
@@ -115,6 +119,10 @@ impl MethodConfig {
             (
                 self.ellipse_friction_factor.is_some(),
                 "ellipse_friction_factor",
+            ),
+            (
+                self.touchdown_friction_factor.is_some(),
+                "touchdown_friction_factor",
             ),
             (self.free_pairing.is_some(), "free_pairing"),
             (self.mpc_horizon.is_some(), "mpc_horizon"),
@@ -177,6 +185,9 @@ impl MethodConfig {
             d.mpc_horizon = self.mpc_horizon;
             if let Some(f) = self.ellipse_friction_factor {
                 d.ellipse_friction_factor = f;
+            }
+            if let Some(f) = self.touchdown_friction_factor {
+                d.touchdown_friction_factor = f;
             }
             if let Some(p) = self.free_pairing {
                 d.free_pair_tolerance = Some(p.pair_tolerance);

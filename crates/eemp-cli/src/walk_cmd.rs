@@ -7,7 +7,7 @@ use eemp_rl::run::WalkDescription;
 use std::path::PathBuf;
 
 /// The options a run file replaces (clap's argument ids, the fields' names).
-pub const RUN_FILE_REPLACES: [&str; 42] = [
+pub const RUN_FILE_REPLACES: [&str; 43] = [
     "controller",
     "policy",
     "estimator",
@@ -46,6 +46,7 @@ pub const RUN_FILE_REPLACES: [&str; 42] = [
     "slow_below_friction",
     "slow_speed",
     "ellipse_friction_factor",
+    "touchdown_friction_factor",
     "mpc_horizon",
     "mpc_period",
     "robot",
@@ -154,6 +155,7 @@ impl WalkArgs {
             preview_swings: self.preview_swings,
             max_accel_mps2: self.max_accel,
             ellipse_friction_factor: self.mpc.ellipse_friction_factor,
+            touchdown_friction_factor: self.mpc.touchdown_friction_factor,
             scenario: self.scenario.clone(),
             floor_friction: self.friction,
             push_at_s: self.push.push_at,

@@ -71,14 +71,15 @@ impl Controller for EempController {
         };
         let started = std::time::Instant::now();
         // The slip detector's coefficient as of the last step (the nominal until a slip).
+        let mu = self.locomotion.friction_coefficient();
         let params = self.planner.config().within_friction_cone(
             &self.params.at_speed(c.vx_mps.hypot(c.vy_mps)),
-            self.locomotion.friction_coefficient(),
+            mu,
             &c,
         );
         let mut plan = self
             .planner
-            .plan(t, input.state, input.feet_world, &c, &params);
+            .plan(t, input.state, input.feet_world, &c, &params, mu);
         plan.speed_cap_mps = speed_cap_mps;
         self.planning_time_s = started.elapsed().as_secs_f64();
         let out = self

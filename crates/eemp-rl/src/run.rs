@@ -197,6 +197,8 @@ pub struct WalkDescription {
     pub max_accel_mps2: f64,
     /// `PlannerConfig::ellipse_friction_factor` (0: the ellipses ignore the slip detector).
     pub ellipse_friction_factor: f64,
+    /// `PlannerConfig::touchdown_friction_factor` (0: eq. (6)'s capture step unbounded).
+    pub touchdown_friction_factor: f64,
     /// A scenario file, applied over the rest.
     pub scenario: Option<PathBuf>,
     pub floor_friction: Option<f64>,
@@ -257,6 +259,7 @@ impl Default for WalkDescription {
             preview_swings: planner.preview_swings,
             max_accel_mps2: planner.max_accel_mps2,
             ellipse_friction_factor: planner.ellipse_friction_factor,
+            touchdown_friction_factor: planner.touchdown_friction_factor,
             scenario: None,
             floor_friction: None,
             push_at_s: None,
@@ -344,6 +347,10 @@ impl WalkDescription {
             (
                 "--ellipse-friction-factor",
                 self.ellipse_friction_factor != defaults.ellipse_friction_factor,
+            ),
+            (
+                "--touchdown-friction-factor",
+                self.touchdown_friction_factor != defaults.touchdown_friction_factor,
             ),
             ("--mpc-friction", self.mpc_friction.is_some()),
             ("--mpc-horizon", self.mpc_horizon.is_some()),
@@ -513,6 +520,7 @@ impl WalkDescription {
             free_pairing: self.free_pairing(),
             first_step_on_command: self.first_step_on_command,
             ellipse_friction_factor: self.ellipse_friction_factor,
+            touchdown_friction_factor: self.touchdown_friction_factor,
         };
         planner.validate().map_err(|e| e.to_string())?;
         // Named by the options given (the profile's check would name its segment).

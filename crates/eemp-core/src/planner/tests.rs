@@ -3,6 +3,10 @@ use crate::body_state::{BodyState, LegJointState};
 use crate::robot::RobotConfig;
 use nalgebra::UnitQuaternion;
 
+/// The MPC's nominal friction coefficient (`MpcConfig::default()`), as the planner sees it
+/// without slip handling.
+const NOMINAL_MU: f64 = 0.6;
+
 fn standing(kin: &LegKinematics, x: f64) -> (RobotState, LegMap<Vector3<f64>>) {
     let height = 0.31;
     let feet_world = LegMap::from_fn(|leg| {
@@ -55,8 +59,8 @@ fn all_feet_inside_means_four_stance_legs_and_a_moving_body_reference() {
         ..Default::default()
     };
     let params = PlannerParams::default();
-    p.plan(0.0, &state, &feet, &cmd, &params);
-    let plan = p.plan(1.0, &state, &feet, &cmd, &params);
+    p.plan(0.0, &state, &feet, &cmd, &params, NOMINAL_MU);
+    let plan = p.plan(1.0, &state, &feet, &cmd, &params, NOMINAL_MU);
     assert_eq!(plan.stance, LegMap::splat(true));
     assert!(plan
         .contacts_horizon
@@ -76,7 +80,7 @@ fn a_foot_outside_its_ellipse_starts_a_swing_to_the_hip_plus_progress() {
     let (state, feet) = standing(&kin, 0.08);
     let cmd = VelocityCommand::default();
     let params = PlannerParams::default();
-    let plan = p.plan(0.0, &state, &feet, &cmd, &params);
+    let plan = p.plan(0.0, &state, &feet, &cmd, &params, NOMINAL_MU);
     let swinging: Vec<Leg> = Leg::ALL.into_iter().filter(|l| !plan.stance[*l]).collect();
     assert_eq!(swinging.len(), 2, "a trot pair swings");
     assert_eq!(swinging[0].diagonal(), swinging[1]);
@@ -93,7 +97,7 @@ fn a_foot_outside_its_ellipse_starts_a_swing_to_the_hip_plus_progress() {
     assert!(tr.displacement_xy.y.abs() < 1e-9);
     // The horizon has the legs in the air for ΔT = 0.25 s = 10 steps of 25 ms, then back.
     assert!(plan.contacts_horizon.iter().all(|c| !c[leg]));
-    let later = p.plan(0.26, &state, &feet, &cmd, &params);
+    let later = p.plan(0.26, &state, &feet, &cmd, &params, NOMINAL_MU);
     assert!(later.stance[leg], "swing ended after ΔT");
     assert_eq!(p.steps()[leg], 1);
 }
@@ -104,7 +108,14 @@ fn no_new_swing_starts_while_one_is_running() {
     let kin = LegKinematics::new(&RobotConfig::a1());
     let (state, feet) = standing(&kin, 0.08);
     let params = PlannerParams::default();
-    let first = p.plan(0.0, &state, &feet, &VelocityCommand::default(), &params);
+    let first = p.plan(
+        0.0,
+        &state,
+        &feet,
+        &VelocityCommand::default(),
+        &params,
+        NOMINAL_MU,
+    );
     assert_eq!(
         first.stance.0.iter().filter(|s| !**s).count(),
         1,
@@ -117,6 +128,7 @@ fn no_new_swing_starts_while_one_is_running() {
             &feet,
             &VelocityCommand::default(),
             &params,
+            NOMINAL_MU,
         );
         assert_eq!(plan.stance, first.stance, "same swing continues");
     }
@@ -133,13 +145,13 @@ fn no_gait_starts_a_swing_while_another_runs() {
         let mut feet = feet0;
         // Only FR is out (8 cm behind its hip): it swings alone.
         feet[Leg::FrontRight].x -= 0.08;
-        let first = p.plan(0.0, &state, &feet, &cmd, &params);
+        let first = p.plan(0.0, &state, &feet, &cmd, &params, NOMINAL_MU);
         assert_eq!(first.stance, LegMap([false, true, true, true]), "{gait:?}");
         // RL (FR's diagonal) leaves its ellipse mid-swing: it waits for FR to land.
         feet[Leg::RearLeft].x -= 0.08;
-        let second = p.plan(0.1, &state, &feet, &cmd, &params);
+        let second = p.plan(0.1, &state, &feet, &cmd, &params, NOMINAL_MU);
         assert_eq!(second.stance, first.stance, "{gait:?}");
-        let after = p.plan(0.26, &state, &feet, &cmd, &params);
+        let after = p.plan(0.26, &state, &feet, &cmd, &params, NOMINAL_MU);
         assert!(
             !after.stance[Leg::RearLeft],
             "{gait:?}: RL swings once FR has landed"
@@ -166,7 +178,8 @@ fn retargeting_moves_the_touchdown_with_the_measured_velocity() {
     let (state, feet) = standing(&kin, 0.08);
     let cmd = VelocityCommand::default();
     let params = PlannerParams::default();
-    let plan = p.plan(0.0, &state, &feet, &cmd, &params);
+    let mut slippery = p.clone();
+    let plan = p.plan(0.0, &state, &feet, &cmd, &params, NOMINAL_MU);
     let leg = Leg::ALL.into_iter().find(|l| !plan.stance[*l]).unwrap();
     let start = p.swings[leg].unwrap().trajectory.start_body;
     // 0.1 s later the trunk has been pushed sideways: it moves at (0.1, −0.3) m/s from
@@ -174,7 +187,7 @@ fn retargeting_moves_the_touchdown_with_the_measured_velocity() {
     // (0) for the 0.15 s left, plus eq. (6) with V_cur = (0.1, −0.3) and V_des = 0.
     let (mut pushed, _) = standing(&kin, 0.09);
     pushed.body.v_world = Vector3::new(0.1, -0.3, 0.0);
-    p.plan(0.1, &pushed, &feet, &cmd, &params);
+    p.plan(0.1, &pushed, &feet, &cmd, &params, NOMINAL_MU);
     let swing = p.swings[leg].unwrap();
     let k = (0.31f64 / 9.81).sqrt();
     let centre = pushed.body.p_world + kin.nominal_foot_body(leg);
@@ -186,6 +199,19 @@ fn retargeting_moves_the_touchdown_with_the_measured_velocity() {
     assert_eq!(swing.trajectory.start_body, start);
     let end = swing.trajectory.sample(swing.trajectory.duration_s).p_body;
     assert!((end.x - expected_x).abs() < 1e-9 && (end.y - expected_y).abs() < 1e-9);
+
+    // The same push where the MPC's coefficient is 0.2: eq. (6)'s feedback step
+    // (0.1, −0.3)·k, 0.0562 m long, is shortened to ½ · 0.2 · X_z = 0.031 m along the same
+    // direction (the default touchdown_friction_factor; X_z = 0.31 m).
+    assert_eq!(p.config().touchdown_friction_factor, 0.5);
+    slippery.plan(0.0, &state, &feet, &cmd, &params, 0.2);
+    slippery.plan(0.1, &pushed, &feet, &cmd, &params, 0.2);
+    let swing = slippery.swings[leg].unwrap();
+    let limit = 0.5 * 0.2 * 0.31;
+    let dir = Vector3::new(0.1, -0.3, 0.0).normalize();
+    assert!((0.1f64.hypot(0.3) * k - 0.0562).abs() < 1e-4 && limit < 0.1f64.hypot(0.3) * k);
+    assert!((swing.touchdown_world.x - (centre.x + dir.x * limit)).abs() < 1e-9);
+    assert!((swing.touchdown_world.y - (centre.y + dir.y * limit)).abs() < 1e-9);
 }
 
 #[test]
@@ -217,8 +243,8 @@ fn preview_shows_the_mpc_a_swing_that_starts_later_in_the_horizon() {
     let params = PlannerParams::default();
     for preview in [false, true] {
         let mut p = make(preview);
-        p.plan(0.0, &state, &feet, &cmd, &params);
-        let plan = p.plan(1.0, &state, &feet, &cmd, &params);
+        p.plan(0.0, &state, &feet, &cmd, &params, NOMINAL_MU);
+        let plan = p.plan(1.0, &state, &feet, &cmd, &params, NOMINAL_MU);
         assert_eq!(plan.stance, LegMap::splat(true), "no foot is outside now");
         let off: Vec<usize> = (0..10)
             .filter(|k| plan.contacts_horizon[*k] != LegMap::splat(true))
@@ -256,7 +282,8 @@ fn the_first_step_on_command_starts_one_trot_pair_at_once_then_the_ellipses_rule
     };
     let mut off = planner(Gait::Trot);
     assert_eq!(
-        off.plan(0.0, &state, &feet, &go, &params).stance,
+        off.plan(0.0, &state, &feet, &go, &params, NOMINAL_MU)
+            .stance,
         LegMap::splat(true)
     );
     let mut on = EemPlanner::new(
@@ -272,15 +299,22 @@ fn the_first_step_on_command_starts_one_trot_pair_at_once_then_the_ellipses_rule
     )
     .unwrap();
     // Standing still: no step, whatever the flag.
-    let still = on.plan(0.0, &state, &feet, &VelocityCommand::default(), &params);
+    let still = on.plan(
+        0.0,
+        &state,
+        &feet,
+        &VelocityCommand::default(),
+        &params,
+        NOMINAL_MU,
+    );
     assert_eq!(still.stance, LegMap::splat(true));
     // Commanded: a diagonal pair lifts now.
-    let plan = on.plan(0.001, &state, &feet, &go, &params);
+    let plan = on.plan(0.001, &state, &feet, &go, &params, NOMINAL_MU);
     let swinging: Vec<Leg> = Leg::ALL.into_iter().filter(|l| !plan.stance[*l]).collect();
     assert_eq!(swinging.len(), 2, "{swinging:?}");
     assert_eq!(swinging[0].diagonal(), swinging[1]);
     // After that swing, the ellipses decide again: feet inside, no new swing.
-    let after = on.plan(1.0, &state, &feet, &go, &params);
+    let after = on.plan(1.0, &state, &feet, &go, &params, NOMINAL_MU);
     assert_eq!(after.stance, LegMap::splat(true));
 }
 
@@ -331,4 +365,23 @@ fn a_command_capped_in_speed_keeps_its_direction_and_yaw_rate() {
     assert_eq!(capped.yaw_rate_rps, 0.2);
     assert_eq!(c.with_speed_at_most(0.5), c);
     assert_eq!(c.with_speed_at_most(0.5 + 1e-12), c);
+}
+
+#[test]
+fn a_touchdown_friction_factor_outside_its_range_is_refused_by_name() {
+    for bad in [-0.1, 3.5, f64::NAN] {
+        let e = PlannerConfig {
+            touchdown_friction_factor: bad,
+            ..Default::default()
+        }
+        .validate()
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("planner.touchdown_friction_factor"), "{e}");
+    }
+    let off = PlannerConfig {
+        touchdown_friction_factor: 0.0,
+        ..Default::default()
+    };
+    assert!(off.validate().is_ok());
 }
