@@ -29,7 +29,8 @@ pub struct MpcArgs {
     #[arg(long)]
     pub hold_cap_after_slip: Option<f64>,
     /// With slip handling: a foot that holds raises the coefficient to this fraction of the
-    /// tangential/normal ratio the MPC asked of it (`slip.hold_raise_fraction`, 0.1–1; default 1).
+    /// tangential/normal ratio the MPC asked of it (`slip.hold_raise_fraction`, 0.1–1; default:
+    /// the gait's, 0.8 for the trot and the free gait, 1 for the walk).
     #[arg(long)]
     pub hold_raise_fraction: Option<f64>,
     /// With slip handling: the planner's reference speed above which it rests at the nominal

@@ -54,7 +54,8 @@ pub struct MethodConfig {
     #[serde(default)]
     pub hold_cap_after_slip: Option<f64>,
     /// EEMP with slip handling: the fraction of the asked ratio a hold raises the coefficient to
-    /// (`slip.hold_raise_fraction`; absent: its default 1).
+    /// (`slip.hold_raise_fraction`; absent: the gait's, 0.8 for the trot and the free gait, 1 for
+    /// the walk).
     #[serde(default)]
     pub hold_raise_fraction: Option<f64>,
     /// EEMP with slip handling: the reference speed above which it rests at the nominal

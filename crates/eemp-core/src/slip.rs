@@ -145,12 +145,13 @@ pub struct SlipConfig {
     /// the anchor's own reading moves by ±0.06 m/s, so two feet that hold read as 0.1 m/s apart.
     pub require_ground_speed: bool,
     /// A hold raises the coefficient to this fraction of the tangential/normal ratio the MPC
-    /// asked of the foot (1: the ratio itself, the default). What the MPC asks is not what the
-    /// foot applies, and the pyramid's corners let the asked ratio reach √2·μ̂. With 0.8 the
-    /// trot and the free gait fell in fewer runs under 0.5 m/s pushes on the 0.3 floor on
-    /// seeds 11–22 (33 of 72 against 44; the seeds 11–16 set: 21 of 216 against 27, flat-floor
-    /// CoT within 0.005) but not on the slippery suite's seeds 1–3 (10 of 72 against 8,
-    /// `reports/slippery/`): within what seeds move, so not the default.
+    /// asked of the foot (1: the ratio itself, `Default` and the walk's; 0.8 for the trot and
+    /// the free gait, [`SlipConfig::default_for`]). What the MPC asks is not what the foot
+    /// applies, and the pyramid's corners let the asked ratio reach √2·μ̂. Before the capture
+    /// step was bounded (`planner.touchdown_friction_factor`) 0.8 was within seed noise of 1;
+    /// with it, under 0.5 m/s side pushes on a 0.3 floor (trot and free gait, filter, 0.1 /
+    /// 0.3 / 0.5 m/s, seeds 1–3 and 11–16, 54 runs) falls were 10 with 1, 4 with 0.9 and 0.8,
+    /// 6 with 0.7, 7 with 0.6 (`HOLD_RAISE_FRACTION_TROT_FREE`).
     pub hold_raise_fraction: f64,
     /// Slip handling runs only while the planner's reference speed (its trunk reference at the
     /// first horizon step) is below this, m/s; from it on the MPC keeps its nominal coefficient
@@ -177,6 +178,14 @@ pub struct SlipConfig {
 /// slippery floors and under pushes, seeds 11–16, against 34 with the cap and the nominal start
 /// and 54 with neither; see the module docs).
 pub const CAUTIOUS_START: f64 = 0.3;
+
+/// The trot's and the free gait's [`SlipConfig::hold_raise_fraction`]. With the capture step
+/// bounded by the friction coefficient (`planner.touchdown_friction_factor`), the seeds 11–16 set
+/// (trot and free gait with their tables, filter, 20 s, 0.1 / 0.3 / 0.5 m/s on the 0.2, 0.25,
+/// 0.8 → 0.2 → 0.8 floors, 0.5 m/s pushes on the 0.8 and 0.3 floors and the flat floor; 216
+/// runs) fell 3 times with it against 11 with 1 (27 before the bound); flat-floor CoT at 0.3 and
+/// 0.5 m/s within 0.0005 of the earlier rule's.
+pub const HOLD_RAISE_FRACTION_TROT_FREE: f64 = 0.8;
 
 /// The walk's [`SlipConfig::max_speed_mps`]: above it its landing feet skid on any floor.
 pub const WALK_MAX_SPEED_MPS: f64 = 0.6;
@@ -242,6 +251,11 @@ impl SlipConfig {
         let walk = gait == crate::planner::gait::Gait::Walk;
         SlipConfig {
             adapt_friction: true,
+            hold_raise_fraction: if walk {
+                1.0
+            } else {
+                HOLD_RAISE_FRACTION_TROT_FREE
+            },
             max_vertical_speed_mps: if walk { 0.2 } else { 0.0 },
             require_ground_speed: walk,
             max_speed_mps: if walk { WALK_MAX_SPEED_MPS } else { 0.0 },
@@ -639,6 +653,12 @@ mod tests {
         };
         assert_eq!(walk.max_speed_mps, WALK_MAX_SPEED_MPS);
         assert_eq!(SlipConfig::default_for(Gait::Trot).max_speed_mps, 0.0);
+        // Holds raise to 0.8 of the asked ratio in the trot and the free gait, all of it in
+        // the walk (and by `Default`).
+        assert_eq!(SlipConfig::default_for(Gait::Trot).hold_raise_fraction, 0.8);
+        assert_eq!(SlipConfig::default_for(Gait::Free).hold_raise_fraction, 0.8);
+        assert_eq!(SlipConfig::default_for(Gait::Walk).hold_raise_fraction, 1.0);
+        assert_eq!(SlipConfig::default().hold_raise_fraction, 1.0);
         let (v, forces) = front_right_slides_flat();
         let stance = LegMap::splat(true);
         // Above 0.6 m/s the same slide is no slip: the nominal stays.

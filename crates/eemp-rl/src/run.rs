@@ -216,7 +216,8 @@ pub struct WalkDescription {
     /// With slip handling: the cap on raises after a slip (`slip.hold_cap_after_slip`; 0: off).
     pub hold_cap_after_slip: Option<f64>,
     /// With slip handling: the fraction of the asked ratio a hold raises the coefficient to
-    /// (`slip.hold_raise_fraction`, 0.1–1; default 1).
+    /// (`slip.hold_raise_fraction`, 0.1–1; default: the gait's, 0.8 for the trot and the free
+    /// gait, 1 for the walk).
     pub hold_raise_fraction: Option<f64>,
     /// With slip handling: the planner's reference speed above which it rests at the nominal
     /// coefficient, m/s (`slip.max_speed_mps`; 0: no limit; default: the gait's, the walk's
