@@ -55,9 +55,10 @@ pub struct MpcArgs {
     pub ellipse_friction_factor: f64,
     /// Eq. (6)'s capture step (its feedback term) stays within the friction cone: at most
     /// factor · μ̂ · X_z, μ̂ the MPC's coefficient (`planner.touchdown_friction_factor`, 0–3;
-    /// 0: the paper's unbounded step).
-    #[arg(long, default_value_t = eemp_core::planner::PlannerConfig::default().touchdown_friction_factor)]
-    pub touchdown_friction_factor: f64,
+    /// 0: the paper's unbounded step; default: the gait's, 0.5 for the trot and the free gait, 0
+    /// for the walk).
+    #[arg(long)]
+    pub touchdown_friction_factor: Option<f64>,
     /// MPC horizon, steps of its dt (default: MpcConfig's 10).
     #[arg(long)]
     pub mpc_horizon: Option<usize>,

@@ -75,7 +75,8 @@ pub struct MethodConfig {
     #[serde(default)]
     pub ellipse_friction_factor: Option<f64>,
     /// EEMP: the capture step's cap by the MPC's coefficient
-    /// (`planner.touchdown_friction_factor`; absent: its default 0.5; 0: off).
+    /// (`planner.touchdown_friction_factor`; absent: the gait's, 0.5 for the trot and the free
+    /// gait, 0 for the walk; 0: off).
     #[serde(default)]
     pub touchdown_friction_factor: Option<f64>,
     /// On the filter: its velocity-jump threshold, m/s (`KfConfig::velocity_jump_mps`; 0: off;
@@ -187,9 +188,7 @@ impl MethodConfig {
             if let Some(f) = self.ellipse_friction_factor {
                 d.ellipse_friction_factor = f;
             }
-            if let Some(f) = self.touchdown_friction_factor {
-                d.touchdown_friction_factor = f;
-            }
+            d.touchdown_friction_factor = self.touchdown_friction_factor;
             if let Some(p) = self.free_pairing {
                 d.free_pair_tolerance = Some(p.pair_tolerance);
                 d.free_support_margin_m = Some(p.support_margin_m);

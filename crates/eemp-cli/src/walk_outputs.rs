@@ -226,7 +226,7 @@ pub fn walk(d: &WalkDescription, o: &WalkOutputs) -> Result<(), String> {
         "first_step_on_command": d.first_step_on_command,
         "max_accel_mps2": d.max_accel_mps2,
         "ellipse_friction_factor": spec.planner.ellipse_friction_factor,
-        "touchdown_friction_factor": spec.planner.touchdown_friction_factor,
+        "touchdown_friction_factor": spec.planner.touchdown_friction_factor_in_force(),
         "preview_swings": d.preview_swings,
         // What the free gait's planner used (EEMP-RL keeps its training's, in the policy file).
         "free_pairing": (is_eemp && gait == Gait::Free)

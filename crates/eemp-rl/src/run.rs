@@ -197,8 +197,9 @@ pub struct WalkDescription {
     pub max_accel_mps2: f64,
     /// `PlannerConfig::ellipse_friction_factor` (0: the ellipses ignore the slip detector).
     pub ellipse_friction_factor: f64,
-    /// `PlannerConfig::touchdown_friction_factor` (0: eq. (6)'s capture step unbounded).
-    pub touchdown_friction_factor: f64,
+    /// `PlannerConfig::touchdown_friction_factor` (0: eq. (6)'s capture step unbounded; None:
+    /// the gait's).
+    pub touchdown_friction_factor: Option<f64>,
     /// A scenario file, applied over the rest.
     pub scenario: Option<PathBuf>,
     pub floor_friction: Option<f64>,
@@ -351,7 +352,7 @@ impl WalkDescription {
             ),
             (
                 "--touchdown-friction-factor",
-                self.touchdown_friction_factor != defaults.touchdown_friction_factor,
+                self.touchdown_friction_factor.is_some(),
             ),
             ("--mpc-friction", self.mpc_friction.is_some()),
             ("--mpc-horizon", self.mpc_horizon.is_some()),

@@ -39,12 +39,25 @@ pub const ELLIPSE_FRICTION_FACTOR_RANGE: [f64; 2] = [0.0, 3.0];
 /// Allowed `PlannerConfig::touchdown_friction_factor` (0: off).
 pub const TOUCHDOWN_FRICTION_FACTOR_RANGE: [f64; 2] = [0.0, 3.0];
 
-/// `PlannerConfig::touchdown_friction_factor` by default. Measured under 0.5 m/s side pushes on
+/// `PlannerConfig::touchdown_friction_factor` by default for the trot and the free gait (the
+/// walk's is 0, [`default_touchdown_friction_factor`]). Measured under 0.5 m/s side pushes on
 /// a 0.3 floor (trot and free gait with their tables, filter, 0.1 / 0.3 / 0.5 m/s, seeds 11–16,
 /// 36 runs): falls with no limit 21, with 1 (the whole cone) 8 on seeds 1–3 as without, 0.5 6,
 /// 0.3 7. Below 1 because μ̂ on such a floor reads above it (0.42–0.44 on average on the 0.3
 /// floor) and the trot's stance feet stand a hip's width beside the trunk.
 pub const DEFAULT_TOUCHDOWN_FRICTION_FACTOR: f64 = 0.5;
+
+/// The gait's `PlannerConfig::touchdown_friction_factor` where the config leaves it unset: 0.5
+/// ([`DEFAULT_TOUCHDOWN_FRICTION_FACTOR`]) for the trot and the free gait, 0 (the paper's
+/// unbounded step) for the walk. The walk stands on three feet, not on a diagonal it can tip
+/// over, and at 0.1 m/s under the same pushes (filter, seeds 1–3 and 11–16, 9 runs) it fell
+/// 4 times unbounded, 6 with 0.5 and 8 with 1 (at 0.3 and 0.5 m/s never).
+pub fn default_touchdown_friction_factor(gait: Gait) -> f64 {
+    match gait {
+        Gait::Walk => 0.0,
+        Gait::Trot | Gait::Free => DEFAULT_TOUCHDOWN_FRICTION_FACTOR,
+    }
+}
 
 /// How much wider than eq. (6)'s commanded touchdown offset an ellipse shrunk into the friction
 /// cone stays: at 1.25 the trot's table at 0.5 m/s (r_x 0.07 m, offset 0.0625 m) is left alone,
@@ -101,8 +114,9 @@ pub struct PlannerConfig {
     /// cannot, and the wide step makes the trunk roll over its diagonal (a 0.5 m/s side push on
     /// a 0.3 floor threw the trot and the free gait in 21 of 36 runs with the full step, on the
     /// filter, seeds 11–16). At the nominal μ̂ = 0.6 and the default ½ it binds only above a
-    /// 0.5 m/s velocity error.
-    pub touchdown_friction_factor: f64,
+    /// 0.5 m/s velocity error. `None` (the default): the gait's
+    /// ([`default_touchdown_friction_factor`]; [`PlannerConfig::touchdown_friction_factor_in_force`]).
+    pub touchdown_friction_factor: Option<f64>,
 }
 
 impl Default for PlannerConfig {
@@ -116,7 +130,7 @@ impl Default for PlannerConfig {
             free_pairing: FreePairing::default(),
             first_step_on_command: false,
             ellipse_friction_factor: 1.0,
-            touchdown_friction_factor: DEFAULT_TOUCHDOWN_FRICTION_FACTOR,
+            touchdown_friction_factor: None,
         }
     }
 }
@@ -133,14 +147,17 @@ impl PlannerConfig {
             lo,
             hi,
         )?;
-        let [lo, hi] = TOUCHDOWN_FRICTION_FACTOR_RANGE;
-        check_range(
-            "planner.touchdown_friction_factor",
-            self.touchdown_friction_factor,
-            lo,
-            hi,
-        )?;
+        if let Some(f) = self.touchdown_friction_factor {
+            let [lo, hi] = TOUCHDOWN_FRICTION_FACTOR_RANGE;
+            check_range("planner.touchdown_friction_factor", f, lo, hi)?;
+        }
         self.free_pairing.validate("planner.free_pairing")
+    }
+
+    /// The capture step's bound in force: the config's, else the gait's.
+    pub fn touchdown_friction_factor_in_force(&self) -> f64 {
+        self.touchdown_friction_factor
+            .unwrap_or_else(|| default_touchdown_friction_factor(self.gait))
     }
 
     /// `params` with the ellipses inside the friction cone of coefficient `mu`
@@ -554,7 +571,7 @@ impl EemPlanner {
     /// shape and only its x/y span changes.
     /// How far eq. (6)'s feedback term may move a touchdown, m (∞: no limit).
     fn feedback_limit_m(&self, params: &PlannerParams, friction_coefficient: f64) -> f64 {
-        let factor = self.config.touchdown_friction_factor;
+        let factor = self.config.touchdown_friction_factor_in_force();
         if factor > 0.0 && friction_coefficient.is_finite() {
             factor * friction_coefficient * params.body_height_m
         } else {

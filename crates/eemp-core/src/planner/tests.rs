@@ -203,7 +203,7 @@ fn retargeting_moves_the_touchdown_with_the_measured_velocity() {
     // The same push where the MPC's coefficient is 0.2: eq. (6)'s feedback step
     // (0.1, −0.3)·k, 0.0562 m long, is shortened to ½ · 0.2 · X_z = 0.031 m along the same
     // direction (the default touchdown_friction_factor; X_z = 0.31 m).
-    assert_eq!(p.config().touchdown_friction_factor, 0.5);
+    assert_eq!(p.config().touchdown_friction_factor_in_force(), 0.5);
     slippery.plan(0.0, &state, &feet, &cmd, &params, 0.2);
     slippery.plan(0.1, &pushed, &feet, &cmd, &params, 0.2);
     let swing = slippery.swings[leg].unwrap();
@@ -371,7 +371,7 @@ fn a_command_capped_in_speed_keeps_its_direction_and_yaw_rate() {
 fn a_touchdown_friction_factor_outside_its_range_is_refused_by_name() {
     for bad in [-0.1, 3.5, f64::NAN] {
         let e = PlannerConfig {
-            touchdown_friction_factor: bad,
+            touchdown_friction_factor: Some(bad),
             ..Default::default()
         }
         .validate()
@@ -380,8 +380,17 @@ fn a_touchdown_friction_factor_outside_its_range_is_refused_by_name() {
         assert!(e.contains("planner.touchdown_friction_factor"), "{e}");
     }
     let off = PlannerConfig {
-        touchdown_friction_factor: 0.0,
+        touchdown_friction_factor: Some(0.0),
         ..Default::default()
     };
     assert!(off.validate().is_ok());
+    assert_eq!(off.touchdown_friction_factor_in_force(), 0.0);
+    // Unset: the gait's, 0.5 for the trot and the free gait, 0 (unbounded) for the walk.
+    for (gait, factor) in [(Gait::Trot, 0.5), (Gait::Free, 0.5), (Gait::Walk, 0.0)] {
+        let c = PlannerConfig {
+            gait,
+            ..Default::default()
+        };
+        assert_eq!(c.touchdown_friction_factor_in_force(), factor, "{gait:?}");
+    }
 }
