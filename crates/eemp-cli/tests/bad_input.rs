@@ -515,7 +515,8 @@ fn a_walk_takes_the_shipped_table_by_default_and_table_ii_on_request() {
         (s, stderr)
     };
     // From the repository: the A1's walk table, as eemp hw, teleop and the suites use.
-    let (s, _) = walk(&repo, &[]);
+    let (s, stderr) = walk(&repo, &[]);
+    assert!(!stderr.contains("above the table's last entry"), "{stderr}");
     assert_eq!(
         s["params_table"], "tables/a1_walk.toml",
         "{}",
@@ -528,6 +529,28 @@ fn a_walk_takes_the_shipped_table_by_default_and_table_ii_on_request() {
     assert_eq!(
         ran["swing_time_s"].as_f64(),
         Some(t.lookup(0.2).swing_time_s)
+    );
+    // A command beyond the table's last entry (1.0 m/s) walks on that entry, and says so.
+    let o = Command::new(env!("CARGO_BIN_EXE_eemp"))
+        .current_dir(&repo)
+        .args([
+            "walk",
+            "--gait",
+            "walk",
+            "--speed",
+            "1.2",
+            "--duration",
+            "0.1",
+        ])
+        .arg("--out")
+        .arg(dir.join("out-fast"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("speed 1.2 m/s is above the table's last entry (1 m/s)"),
+        "{stderr}"
     );
     // --table-ii: the paper's constants.
     let (s, _) = walk(&repo, &["--table-ii"]);

@@ -496,6 +496,18 @@ impl WalkDescription {
             }
             None => None,
         };
+        // Outside its speeds a table walks on its end entry (`ParamsTable::lookup`): say so
+        // where the command asks for more than it was selected for.
+        if let (Some(t), None) = (&params_table, &self.profile) {
+            let speed = self.speed_mps.hypot(self.lateral_mps);
+            if let Some(last) = t.entries.last().filter(|e| speed > e.speed_mps + 1e-9) {
+                eprintln!(
+                    "note: the command's speed {speed} m/s is above the table's last entry \
+                     ({} m/s): walking on that entry's parameters",
+                    last.speed_mps
+                );
+            }
+        }
         if let Some(f) = self.progress_factor {
             let [lo, hi] = eemp_core::planner::PROGRESS_FACTOR_RANGE;
             if !(f.is_finite() && (lo..=hi).contains(&f)) {

@@ -42,9 +42,10 @@ pub const TOUCHDOWN_FRICTION_FACTOR_RANGE: [f64; 2] = [0.0, 3.0];
 /// `PlannerConfig::touchdown_friction_factor` by default for the trot and the free gait (the
 /// walk's is 0, [`default_touchdown_friction_factor`]). Measured under 0.5 m/s side pushes on
 /// a 0.3 floor (trot and free gait with their tables, filter, 0.1 / 0.3 / 0.5 m/s, seeds 11–16,
-/// 36 runs): falls with no limit 21, with 1 (the whole cone) 8 on seeds 1–3 as without, 0.5 6,
-/// 0.3 7. Below 1 because μ̂ on such a floor reads above it (0.42–0.44 on average on the 0.3
-/// floor) and the trot's stance feet stand a hip's width beside the trunk.
+/// 36 runs): falls with no limit 21, with 0.5 6, with 0.3 7; on the suite's seeds 1–3 (18 runs)
+/// no limit 8, 1 (the whole cone) 8, 0.5 4, 0.4 5, 0.3 4. Below 1 because μ̂ on such a floor
+/// reads above it (0.41–0.42 on average on the 0.3 floor) and the trot's stance feet stand a
+/// hip's width beside the trunk.
 pub const DEFAULT_TOUCHDOWN_FRICTION_FACTOR: f64 = 0.5;
 
 /// The gait's `PlannerConfig::touchdown_friction_factor` where the config leaves it unset: 0.5
