@@ -347,9 +347,10 @@ impl EemPlanner {
                 self.swings[leg] = None;
             }
         }
-        let feedback_limit_m = self.feedback_limit_m(params, friction_coefficient);
+        // Eq. (6) for running swings and new ones alike: the same state and reference.
+        let prog = self.touchdown_progress(state, params, friction_coefficient);
         if self.config.retarget_swing {
-            self.retarget_swings(t, state, params, feedback_limit_m);
+            self.retarget_swings(t, state, &prog);
         }
         // Stance feet on the ground: the ground height under the robot.
         let stance = self.swings.map(|_, s| s.is_none());
@@ -368,15 +369,9 @@ impl EemPlanner {
             && v_cmd.norm() >= 0.01;
         let legs = self.next_legs(state, feet_world, params, &stance, kick);
         if !legs.is_empty() {
-            for (leg, swing) in self.start_swing(
-                t,
-                state,
-                feet_world,
-                &legs,
-                params,
-                ground_z,
-                feedback_limit_m,
-            ) {
+            for (leg, swing) in
+                self.start_swing(t, state, feet_world, &legs, params, ground_z, &prog)
+            {
                 self.swings[leg] = Some(swing);
                 self.steps[leg] += 1;
             }
@@ -570,34 +565,9 @@ impl EemPlanner {
     /// lift-off), plus p_prog with the velocity measured now. (Carrying the centre forward at
     /// the measured velocity instead tracked worse at 0.5–1.0 m/s.) The lift-off point stays, so the trajectory keeps its
     /// shape and only its x/y span changes.
-    /// How far eq. (6)'s feedback term may move a touchdown, m (∞: no limit).
-    fn feedback_limit_m(&self, params: &PlannerParams, friction_coefficient: f64) -> f64 {
-        let factor = self.config.touchdown_friction_factor_in_force();
-        if factor > 0.0 && friction_coefficient.is_finite() {
-            factor * friction_coefficient * params.body_height_m
-        } else {
-            f64::INFINITY
-        }
-    }
-
-    fn retarget_swings(
-        &mut self,
-        t: f64,
-        state: &RobotState,
-        params: &PlannerParams,
-        feedback_limit_m: f64,
-    ) {
+    fn retarget_swings(&mut self, t: f64, state: &RobotState, prog: &Vector2<f64>) {
         let body = &state.body;
         let heading = Rotation3::from_axis_angle(&Vector3::z_axis(), body.rpy().z);
-        let v_cur = body.v_heading();
-        let prog = touchdown::progress(
-            &self.v_ref,
-            &Vector2::new(v_cur.x, v_cur.y),
-            params.swing_time_s,
-            params.body_height_m,
-            self.config.progress_factor,
-            feedback_limit_m,
-        );
         for leg in Leg::ALL {
             let Some(swing) = self.swings[leg].as_mut() else {
                 continue;
@@ -618,6 +588,32 @@ impl EemPlanner {
         }
     }
 
+    /// Eq. (6)'s p_prog for the touchdowns planned at this step, heading frame (m), its feedback
+    /// term bounded by `friction_coefficient` ([`PlannerConfig::touchdown_friction_factor`]).
+    fn touchdown_progress(
+        &self,
+        state: &RobotState,
+        params: &PlannerParams,
+        friction_coefficient: f64,
+    ) -> Vector2<f64> {
+        let factor = self.config.touchdown_friction_factor_in_force();
+        let feedback_limit_m = if factor > 0.0 && friction_coefficient.is_finite() {
+            factor * friction_coefficient * params.body_height_m
+        } else {
+            f64::INFINITY
+        };
+        let v_cur = state.body.v_heading();
+        touchdown::progress(
+            &self.v_ref,
+            &Vector2::new(v_cur.x, v_cur.y),
+            params.swing_time_s,
+            params.body_height_m,
+            self.config.progress_factor,
+            feedback_limit_m,
+        )
+    }
+
+    #[allow(clippy::too_many_arguments)] // when, the state, the feet, which legs, the parameters, the ground and eq. (6): each used once
     fn start_swing(
         &self,
         t: f64,
@@ -626,20 +622,11 @@ impl EemPlanner {
         legs: &[Leg],
         params: &PlannerParams,
         ground_z: f64,
-        feedback_limit_m: f64,
+        prog: &Vector2<f64>,
     ) -> Vec<(Leg, PlannedSwing)> {
         let body = &state.body;
         let yaw = body.rpy().z;
         let heading = Rotation3::from_axis_angle(&Vector3::z_axis(), yaw);
-        let v_cur = body.v_heading();
-        let prog = touchdown::progress(
-            &self.v_ref,
-            &Vector2::new(v_cur.x, v_cur.y),
-            params.swing_time_s,
-            params.body_height_m,
-            self.config.progress_factor,
-            feedback_limit_m,
-        );
         let mut swings = Vec::with_capacity(legs.len());
         for leg in legs {
             // Eq. (7)'s displacement p_prog − p_ell is relative to the hip; the hip itself moves
