@@ -653,12 +653,6 @@ mod tests {
         };
         assert_eq!(walk.max_speed_mps, WALK_MAX_SPEED_MPS);
         assert_eq!(SlipConfig::default_for(Gait::Trot).max_speed_mps, 0.0);
-        // Holds raise to 0.8 of the asked ratio in the trot and the free gait, all of it in
-        // the walk (and by `Default`).
-        assert_eq!(SlipConfig::default_for(Gait::Trot).hold_raise_fraction, 0.8);
-        assert_eq!(SlipConfig::default_for(Gait::Free).hold_raise_fraction, 0.8);
-        assert_eq!(SlipConfig::default_for(Gait::Walk).hold_raise_fraction, 1.0);
-        assert_eq!(SlipConfig::default().hold_raise_fraction, 1.0);
         let (v, forces) = front_right_slides_flat();
         let stance = LegMap::splat(true);
         // Above 0.6 m/s the same slide is no slip: the nominal stays.
@@ -871,6 +865,17 @@ mod tests {
             let mu = a.update(0.1, &stance, &still(), &f, 0.0);
             assert!((mu - expected).abs() < 1e-12, "{start}: {mu}");
         }
+        // By default the trot and the free gait raise to 0.8 of the asked ratio, the walk (and
+        // `Default`) to all of it.
+        use crate::planner::gait::Gait;
+        for (gait, fraction) in [(Gait::Trot, 0.8), (Gait::Free, 0.8), (Gait::Walk, 1.0)] {
+            assert_eq!(
+                SlipConfig::default_for(gait).hold_raise_fraction,
+                fraction,
+                "{gait:?}"
+            );
+        }
+        assert_eq!(SlipConfig::default().hold_raise_fraction, 1.0);
     }
 
     #[test]

@@ -170,12 +170,6 @@ struct Evaluation {
 
 #[cfg(feature = "learning")]
 impl Evaluation {
-    /// Energy per distance over all the episodes, J/m (eq. 8 without m g, which is the same for
-    /// the two candidates an entry's check compares).
-    fn energy_per_distance(&self) -> f64 {
-        self.energy_j / self.distance_m
-    }
-
     /// The evaluation's fields of a `checkpoint/evaluations.csv` row, `wall_s` last.
     fn cache_row(&self, wall_s: f64) -> String {
         format!(
@@ -512,7 +506,11 @@ impl Run<'_> {
             };
             let base = self.evaluate_cached(&nominal, x, episodes)?;
             let corrected = self.evaluate_cached(&nominal, found, episodes)?;
-            let [table, ours] = [base.energy_per_distance(), corrected.energy_per_distance()];
+            // Eq. (8) in J/m over all the episodes (m g is the same for both tables).
+            let [table, ours] = [&base, &corrected].map(|e| {
+                eemp_core::metrics::cost_of_transport_j_per_m(e.energy_j, e.distance_m)
+                    .unwrap_or(f64::NAN)
+            });
             check.nominal_j_per_m = [table, ours];
             check.nominal_falls = Some(corrected.falls);
             // No distance (a non-finite energy per distance) fails the check.

@@ -108,28 +108,15 @@ fn no_new_swing_starts_while_one_is_running() {
     let kin = LegKinematics::new(&RobotConfig::a1());
     let (state, feet) = standing(&kin, 0.08);
     let params = PlannerParams::default();
-    let first = p.plan(
-        0.0,
-        &state,
-        &feet,
-        &VelocityCommand::default(),
-        &params,
-        NOMINAL_MU,
-    );
+    let still = VelocityCommand::default();
+    let first = p.plan(0.0, &state, &feet, &still, &params, NOMINAL_MU);
     assert_eq!(
         first.stance.0.iter().filter(|s| !**s).count(),
         1,
         "walk: one leg"
     );
     for i in 1..10 {
-        let plan = p.plan(
-            i as f64 * 0.02,
-            &state,
-            &feet,
-            &VelocityCommand::default(),
-            &params,
-            NOMINAL_MU,
-        );
+        let plan = p.plan(i as f64 * 0.02, &state, &feet, &still, &params, NOMINAL_MU);
         assert_eq!(plan.stance, first.stance, "same swing continues");
     }
 }
@@ -299,15 +286,9 @@ fn the_first_step_on_command_starts_one_trot_pair_at_once_then_the_ellipses_rule
     )
     .unwrap();
     // Standing still: no step, whatever the flag.
-    let still = on.plan(
-        0.0,
-        &state,
-        &feet,
-        &VelocityCommand::default(),
-        &params,
-        NOMINAL_MU,
-    );
-    assert_eq!(still.stance, LegMap::splat(true));
+    let rest = VelocityCommand::default();
+    let at_rest = on.plan(0.0, &state, &feet, &rest, &params, NOMINAL_MU);
+    assert_eq!(at_rest.stance, LegMap::splat(true));
     // Commanded: a diagonal pair lifts now.
     let plan = on.plan(0.001, &state, &feet, &go, &params, NOMINAL_MU);
     let swinging: Vec<Leg> = Leg::ALL.into_iter().filter(|l| !plan.stance[*l]).collect();
