@@ -43,7 +43,8 @@ pub struct ReproduceArgs {
     #[arg(long, requires = "check")]
     pub strict: bool,
     /// Run the selected stages even when they are up to date, from scratch (a finished run's
-    /// scratch folder is emptied; a run that was killed resumes).
+    /// scratch folder is emptied; a run that was killed resumes, unless its inputs or code
+    /// changed since).
     #[arg(long, conflicts_with = "check")]
     pub force: bool,
     /// List the stages and what they make.
@@ -134,7 +135,7 @@ pub fn run(args: &ReproduceArgs) -> Result<bool, String> {
             claim_work_dir(
                 &root,
                 stage,
-                &inputs_digest(&inputs, args.quick),
+                &work_digest(&repo, stage, &inputs, args.quick)?,
                 Some((k, n)),
                 args.force,
             )?;
@@ -161,7 +162,7 @@ pub fn run(args: &ReproduceArgs) -> Result<bool, String> {
         // What the stage starts from: an input replaced while it runs (a parent policy retrained
         // beside it) leaves it stale, not up to date.
         let inputs = hash_all(&root, &stage.inputs).map_err(|e| e.to_string())?;
-        let digest = inputs_digest(&inputs, args.quick);
+        let digest = work_digest(&repo, stage, &inputs, args.quick)?;
         claim_work_dir(&root, stage, &digest, None, args.force)?;
         if let (Some(n), true) = (args.merge_shards, stage.shardable()) {
             if shards_current(&root, stage, &digest, n) {
@@ -199,14 +200,46 @@ pub fn run(args: &ReproduceArgs) -> Result<bool, String> {
     Ok(true)
 }
 
-/// The digest of a stage's inputs (their hashes, `hash_all`) and scale that its scratch folders
-/// are stamped with.
-fn inputs_digest(inputs: &BTreeMap<String, Option<String>>, quick: bool) -> String {
+/// What a stage's scratch folders are stamped with: its scale, the hashes of its inputs
+/// (`hash_all`) and of its code folders in the repository. A run killed and started again after
+/// a code change must not resume into rows the earlier code made (a suite's finished runs are
+/// kept by name, whatever made them).
+fn work_digest(
+    repo: &Path,
+    stage: &Stage,
+    inputs: &BTreeMap<String, Option<String>>,
+    quick: bool,
+) -> Result<String, String> {
+    let code = hash_all(repo, &stage.code).map_err(|e| e.to_string())?;
     let mut digest = format!("quick = {quick}\n");
     for (p, h) in inputs {
         digest.push_str(&format!("{p} {}\n", h.as_deref().unwrap_or("-")));
     }
-    digest
+    for (p, h) in code {
+        digest.push_str(&format!(
+            "{CODE_PREFIX}{p} {}\n",
+            h.as_deref().unwrap_or("-")
+        ));
+    }
+    Ok(digest)
+}
+
+/// Marks a code folder's line in a work digest.
+const CODE_PREFIX: &str = "code ";
+
+/// Why the work stamped `old` is not valid for `new` (both from [`work_digest`]).
+fn why_digest_differs(old: &str, new: &str) -> &'static str {
+    let without_code = |d: &str| {
+        d.lines()
+            .filter(|l| !l.starts_with(CODE_PREFIX))
+            .collect::<Vec<_>>()
+            .join("\n")
+    };
+    if without_code(old) == without_code(new) {
+        "the code it runs changed"
+    } else {
+        "its inputs changed"
+    }
 }
 
 /// Where the digest of the scratch folder `rel` is kept: beside the folders, not inside (a step
@@ -222,12 +255,13 @@ fn stamp_of(root: &Path, rel: &str) -> PathBuf {
 }
 
 /// A stage's scratch folder (or one shard's) holds work that its steps resume, valid only for
-/// the inputs it was started with. A folder started with other inputs (or at the other scale) is
-/// emptied first, so a changed robot file or config never resumes into results made before the
-/// change; a folder without a digest is kept as it is. Each shard claims only its own folder.
+/// the inputs and code it was started with. A folder started with other inputs, other code (the
+/// stage's `code` folders) or at the other scale is emptied first, so a changed robot file,
+/// config or controller never resumes into results made before the change; a folder without a digest is kept as it is. Each shard claims only its own folder.
 /// `force` (a stage run although up to date, e.g. after a code change): a folder whose run
 /// finished (marked so when its steps succeeded) is emptied too, or the resumable steps would
-/// only copy the old results again; a run that was killed (unmarked) resumes.
+/// only copy the old results again; a run that was killed (unmarked) resumes under the same
+/// inputs and code.
 fn claim_work_dir(
     root: &Path,
     stage: &Stage,
@@ -242,7 +276,10 @@ fn claim_work_dir(
     let finished = done.exists();
     if let Ok(old) = std::fs::read_to_string(&stamp) {
         let why = if old != digest {
-            Some(format!("its inputs changed since {rel} was started"))
+            Some(format!(
+                "{} since {rel} was started",
+                why_digest_differs(&old, digest)
+            ))
         } else if force && finished {
             Some(format!("--force: {rel} holds a finished run"))
         } else {

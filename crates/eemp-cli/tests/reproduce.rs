@@ -226,10 +226,12 @@ fn bad_input_names_the_stage_shard_or_file_and_writes_nothing() {
 }
 
 #[test]
-fn a_stage_whose_inputs_changed_or_that_is_forced_after_finishing_starts_afresh() {
+fn a_stage_whose_inputs_or_code_changed_or_that_is_forced_after_finishing_starts_afresh() {
     let d = tempfile::tempdir().unwrap();
     let root = d.path();
     std::fs::create_dir_all(root.join("robots")).unwrap();
+    std::fs::create_dir_all(root.join("src")).unwrap();
+    std::fs::write(root.join("src/lib.rs"), "// the controller\n").unwrap();
     std::fs::copy(repo().join("robots/a1.toml"), root.join("robots/a1.toml")).unwrap();
     std::fs::write(
         root.join("p.toml"),
@@ -240,6 +242,7 @@ sources = ["robots"]
 name = "model"
 about = "the A1's model"
 inputs = ["robots/a1.toml"]
+code = ["src"]
 outputs = ["copied.toml"]
 [[stage.step]]
 run = ["model", "--robot", "robots/a1.toml"]
@@ -280,6 +283,20 @@ copy = ["robots/a1.toml", "copied.toml"]
     let text = std::fs::read_to_string(&robot).unwrap();
     std::fs::write(&robot, format!("{text}\n# edited\n")).unwrap();
     let stdout = run();
-    assert!(stdout.contains("starting it afresh"), "{stdout}");
+    assert!(
+        stdout.contains("its inputs changed") && stdout.contains("starting it afresh"),
+        "{stdout}"
+    );
+    assert!(!marker.exists());
+    // A killed run does not resume under changed code either: its finished rows were made by
+    // the earlier controller.
+    std::fs::write(&marker, "").unwrap();
+    std::fs::remove_file(&finished).unwrap();
+    std::fs::write(root.join("src/lib.rs"), "// the controller, changed\n").unwrap();
+    let stdout = run();
+    assert!(
+        stdout.contains("the code it runs changed") && stdout.contains("starting it afresh"),
+        "{stdout}"
+    );
     assert!(!marker.exists());
 }
