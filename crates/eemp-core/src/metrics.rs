@@ -90,6 +90,11 @@ pub struct MetricsAccumulator {
     electrical_energy_j: f64,
 }
 
+/// A run's CoTs are reported only over a straight-line displacement of at least this much, m.
+/// Below it the distance is the trunk's sway and drift, not travel, and eq. (8)'s ratio means
+/// nothing: a trot commanded to 0 m/s did no positive work over 9 mm of drift and read CoT 0.
+pub const MIN_COT_DISTANCE_M: f64 = 0.05;
+
 /// Summary metrics of a run (over the measured window).
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct WalkMetrics {
@@ -98,7 +103,9 @@ pub struct WalkMetrics {
     /// Horizontal path length, m.
     pub path_length_m: f64,
     pub energy_j: f64,
+    /// Eq. (8), J/m; `None` under [`MIN_COT_DISTANCE_M`] of distance.
     pub cot_j_per_m: Option<f64>,
+    /// Eq. (8) over m·g; `None` under [`MIN_COT_DISTANCE_M`] of distance.
     pub cot: Option<f64>,
     pub manipulability: Option<f64>,
     pub vel_rmse_mps: Option<f64>,
@@ -181,12 +188,18 @@ impl MetricsAccumulator {
         let start = self.start_xy.unwrap_or(self.end_xy);
         let distance =
             ((self.end_xy[0] - start[0]).powi(2) + (self.end_xy[1] - start[1]).powi(2)).sqrt();
+        // The ratios' ΔD: none under MIN_COT_DISTANCE_M, so the CoTs are `None` there.
+        let cot_distance = if distance >= MIN_COT_DISTANCE_M {
+            distance
+        } else {
+            0.0
+        };
         WalkMetrics {
             distance_m: distance,
             path_length_m: self.path_m,
             energy_j: self.energy_j,
-            cot_j_per_m: cost_of_transport_j_per_m(self.energy_j, distance),
-            cot: cost_of_transport_dimensionless(self.energy_j, mass_kg, distance),
+            cot_j_per_m: cost_of_transport_j_per_m(self.energy_j, cot_distance),
+            cot: cost_of_transport_dimensionless(self.energy_j, mass_kg, cot_distance),
             manipulability: (self.manip_samples > 0)
                 .then(|| self.manip_sum / self.manip_samples as f64),
             vel_rmse_mps: (self.vel_samples > 0)
@@ -206,12 +219,12 @@ impl MetricsAccumulator {
             cot_abs_power: cost_of_transport_dimensionless(
                 self.joint_positive_work_j + self.joint_negative_work_j,
                 mass_kg,
-                distance,
+                cot_distance,
             ),
             cot_electrical: cost_of_transport_dimensionless(
                 self.electrical_energy_j,
                 mass_kg,
-                distance,
+                cot_distance,
             ),
         }
     }
@@ -284,6 +297,39 @@ mod tests {
         assert!((m.vel_rmse_mps.unwrap() - 0.1).abs() < 1e-12);
         assert!((m.all_stance_fraction - 0.25).abs() < 1e-12);
         assert_eq!(m.manipulability, Some(1.0));
+    }
+
+    #[test]
+    fn a_run_that_does_not_travel_has_no_cot() {
+        let walk = |dx_per_step_m: f64| {
+            let mut acc = MetricsAccumulator::default();
+            let mut qd = LegMap::splat(Vector3::zeros());
+            let mut tau = LegMap::splat(Vector3::zeros());
+            qd[Leg::FrontRight].x = 1.0;
+            tau[Leg::FrontRight].x = 5.0;
+            for i in 0..100 {
+                acc.observe(
+                    0.01,
+                    &Vector3::new(i as f64 * dx_per_step_m, 0.0, 0.3),
+                    &Vector3::zeros(),
+                    [0.0, 0.0],
+                    &qd,
+                    &tau,
+                    &LegMap::splat(true),
+                    &LegMap::splat(Matrix3::identity()),
+                )
+            }
+            acc.finish(10.0)
+        };
+        // 99 steps of 0.4 mm: 39.6 mm of drift, under the 50 mm minimum.
+        let stand = walk(0.0004);
+        assert!((stand.distance_m - 0.0396).abs() < 1e-12);
+        assert_eq!((stand.cot, stand.cot_j_per_m, stand.cot_abs_power), (None, None, None));
+        assert!(stand.energy_j > 0.0);
+        // 99 steps of 0.6 mm: 59.4 mm, over it; 5 W for 1 s (the first sample opens the
+        // window) is 5 J over 0.0594 m.
+        let walked = walk(0.0006);
+        assert!((walked.cot_j_per_m.unwrap() - walked.energy_j / 0.0594).abs() < 1e-9);
     }
 
     #[test]
