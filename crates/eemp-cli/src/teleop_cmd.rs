@@ -1,14 +1,18 @@
-//! `eemp teleop`: EEMP in the simulation driven by an operator — a gamepad (Linux joystick
+//! `eemp teleop`: a walk in the simulation driven by an operator — a gamepad (Linux joystick
 //! device), the keyboard, or a command script — through the same shaping (deadzone, limits,
-//! slew rate) as on the robot. Real time unless `--headless`. Writes the paper's Fig. 10
-//! analogue: commanded against estimated velocity, and the foot heights.
+//! slew rate) as on the robot. Real time unless `--headless`. The walk is the one run
+//! description of `eemp walk` ([`WalkDescription`]: EEMP on a gait's table by default, any
+//! controller, floor or scenario with `--run FILE`), the operator in place of its command.
+//! Writes the paper's Fig. 10 analogue: commanded against estimated velocity, and the foot
+//! heights.
 
 use crate::plots::{line_panels, Panel, Series};
-use eemp_core::planner::{PlannerConfig, PlannerParams, VelocityCommand};
+use eemp_core::planner::VelocityCommand;
 use eemp_core::teleop::{
     key_step, CommandShaper, JsEvent, OperatorInput, PadMapping, PadState, TeleopConfig,
 };
-use eemp_sim::walk::{eemp_controller, run_walk_commanded, StartPose, VelocityProfile, WalkSpec};
+use eemp_rl::run::{Driver, Sensing, WalkDescription};
+use eemp_sim::walk::VelocityProfile;
 use std::io::Read;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
@@ -33,6 +37,18 @@ pub struct TeleopArgs {
     /// trot, walk or free, with its per-speed table (tables/<robot>_<gait>.toml).
     #[arg(long, default_value = "trot")]
     pub gait: String,
+    /// eemp, or a learned controller (model-free, imitation, eemp-rl) with --policy.
+    #[arg(long, default_value = "eemp")]
+    pub controller: String,
+    /// The policy file of a learned --controller.
+    #[arg(long)]
+    pub policy: Option<PathBuf>,
+    /// The walk to drive, as `eemp walk --run` takes it (controller, gait, parameters, floor,
+    /// scenario, sensing, robot; `eemp_rl::run::WalkDescription`), in place of the options
+    /// here. The operator replaces its command (speed, lateral, yaw rate, profile) and
+    /// --duration its duration.
+    #[arg(long, value_name = "FILE", conflicts_with_all = RUN_FILE_REPLACES)]
+    pub run: Option<PathBuf>,
     /// Simulated seconds (default: a script's last segment + 3 s, else 60 s).
     #[arg(long)]
     pub duration: Option<f64>,
@@ -51,6 +67,68 @@ pub struct TeleopArgs {
     /// Output folder (summary.json, trace.csv, teleop.png).
     #[arg(long)]
     pub out: PathBuf,
+}
+
+/// The options `--run FILE` stands in for.
+const RUN_FILE_REPLACES: [&str; 7] = [
+    "gait",
+    "controller",
+    "policy",
+    "estimator",
+    "seed",
+    "robot",
+    "allow_robot_mismatch",
+];
+
+/// The walk the operator drives: `--run FILE`, or the options here (the Kalman filter by
+/// default, as on the robot). Its command is the operator's: the run starts from rest, as for
+/// a command of 0.
+fn description(args: &TeleopArgs, duration_s: f64) -> Result<WalkDescription, String> {
+    let mut d = match &args.run {
+        Some(p) => {
+            let d: WalkDescription =
+                eemp_core::config_error::load_toml(p).map_err(|e| e.to_string())?;
+            let defaults = WalkDescription::default();
+            let replaced: Vec<&str> = [
+                ("speed_mps", d.speed_mps != defaults.speed_mps),
+                ("lateral_mps", d.lateral_mps != defaults.lateral_mps),
+                ("yaw_rate_rps", d.yaw_rate_rps != defaults.yaw_rate_rps),
+                ("profile", d.profile.is_some()),
+                ("duration_s", d.duration_s != defaults.duration_s),
+            ]
+            .into_iter()
+            .filter_map(|(key, set)| set.then_some(key))
+            .collect();
+            if !replaced.is_empty() {
+                eprintln!(
+                    "teleop: {} of {} replaced by the operator's commands and the session's \
+                     duration ({duration_s} s)",
+                    replaced.join(", "),
+                    p.display()
+                );
+            }
+            d
+        }
+        None => WalkDescription {
+            robot: args.robot.robot.clone(),
+            allow_robot_mismatch: args.robot.allow_robot_mismatch,
+            controller: args.controller.clone(),
+            policy: args.policy.clone(),
+            gait: args.gait.clone(),
+            sensing: Sensing {
+                estimator: args.estimator.clone(),
+                seed: args.seed,
+                ..Default::default()
+            },
+            ..Default::default()
+        },
+    };
+    d.speed_mps = 0.0;
+    d.lateral_mps = 0.0;
+    d.yaw_rate_rps = 0.0;
+    d.profile = None;
+    d.duration_s = duration_s;
+    Ok(d)
 }
 
 /// Where the wish comes from.
@@ -136,7 +214,6 @@ pub fn run(args: &TeleopArgs) -> Result<(), String> {
         None => TeleopConfig::default(),
     };
     let mut shaper = CommandShaper::new(cfg.clone()).map_err(|e| e.to_string())?;
-    let robot = args.robot.load()?;
     let script = match &args.commands {
         Some(p) => {
             let prof: VelocityProfile =
@@ -165,27 +242,12 @@ pub fn run(args: &TeleopArgs) -> Result<(), String> {
     if let Some(dev) = &args.joystick {
         check_joystick_device(dev)?;
     }
-    let gait: eemp_core::planner::Gait = args.gait.parse()?;
-    let mut spec = WalkSpec::constant(
-        PlannerConfig {
-            gait,
-            ..Default::default()
-        },
-        PlannerParams::default(),
-        VelocityCommand::default(),
-        duration,
-    );
-    let table = robot.shipped_table_path(gait);
-    spec.params_table = Some(
-        eemp_core::planner::params_table::ParamsTable::load(&table)
-            .map_err(|e| format!("{e} (the per-speed {gait} table of robot '{}')", robot.name))?,
-    );
-    spec.allow_robot_mismatch = args.robot.allow_robot_mismatch;
-    spec.state_source =
-        crate::state_source_arg::state_source(&args.estimator, false, args.seed, &robot)?;
-    spec.metrics_start_s = 0.0;
-    let mut controller = eemp_controller(&robot, &spec).map_err(|e| e.to_string())?;
-    let start = StartPose::eemp(&robot, &spec).map_err(|e| e.to_string())?;
+    let mut built = description(args, duration)?.build()?;
+    // The whole session is measured: there is no speed-up to leave out.
+    built.spec.metrics_start_s = 0.0;
+    let method = built.method();
+    let gait = matches!(built.driver, Driver::Eemp).then(|| built.gait.to_string());
+    let (robot, spec) = (built.robot.clone(), built.spec.clone());
     let mut source = match (&script, &args.joystick) {
         (Some(p), _) => Source::Script(p.clone()),
         (None, Some(dev)) => spawn_joystick(dev, cfg.clone())?,
@@ -225,34 +287,28 @@ pub fn run(args: &TeleopArgs) -> Result<(), String> {
     }
     let mut rows: Vec<Row> = Vec::new();
     let kin = eemp_core::kinematics::LegKinematics::new(&robot);
-    let mut recorder = args.rerun.open("teleop: EEMP", &robot, &spec)?;
-    let run = run_walk_commanded(
-        &robot,
-        &spec,
-        &start,
-        &mut controller,
-        &mut command_at,
-        |r| {
-            recorder.observe(r);
-            let k = (r.state.time_s / dt).round() as usize;
-            if !k.is_multiple_of(10) {
-                return;
-            }
-            let heading = |b: &eemp_core::body_state::BodyState| {
-                let v = b.v_heading();
-                [v.x, v.y, b.omega_world.z]
-            };
-            let feet = eemp_core::controller::feet_world(&kin, r.state);
-            rows.push(Row {
-                t: r.state.time_s,
-                cmd: [r.command.vx_mps, r.command.vy_mps, r.command.yaw_rate_rps],
-                est: heading(&r.estimate.body),
-                truth: heading(&r.state.body),
-                feet_z: [0, 1, 2, 3].map(|i| feet.0[i].z - robot.leg.foot_radius_m),
-            });
-        },
-    )
-    .map_err(|e| e.to_string())?;
+    let mut recorder = args
+        .rerun
+        .open(&format!("teleop: {method}"), &robot, &spec)?;
+    let run = built.run_commanded(&mut command_at, |r| {
+        recorder.observe(r);
+        let k = (r.state.time_s / dt).round() as usize;
+        if !k.is_multiple_of(10) {
+            return;
+        }
+        let heading = |b: &eemp_core::body_state::BodyState| {
+            let v = b.v_heading();
+            [v.x, v.y, b.omega_world.z]
+        };
+        let feet = eemp_core::controller::feet_world(&kin, r.state);
+        rows.push(Row {
+            t: r.state.time_s,
+            cmd: [r.command.vx_mps, r.command.vy_mps, r.command.yaw_rate_rps],
+            est: heading(&r.estimate.body),
+            truth: heading(&r.state.body),
+            feet_z: [0, 1, 2, 3].map(|i| feet.0[i].z - robot.leg.foot_radius_m),
+        });
+    })?;
     if let Some(summary) = recorder.finish() {
         eprintln!("rerun: {summary}\r");
     }
@@ -317,7 +373,7 @@ pub fn run(args: &TeleopArgs) -> Result<(), String> {
     });
     line_panels(
         &args.out.join("teleop.png"),
-        &format!("Teleoperation, EEMP {gait} (Fig. 10 analogue)"),
+        &format!("Teleoperation, {method} (Fig. 10 analogue)"),
         &panels,
     )
     .map_err(|e| e.to_string())?;
@@ -329,7 +385,10 @@ pub fn run(args: &TeleopArgs) -> Result<(), String> {
         (e.iter().sum::<f64>() / e.len().max(1) as f64).sqrt()
     };
     let summary = serde_json::json!({
-        "gait": gait.to_string(),
+        "method": method,
+        // EEMP's gait (a policy walks the gait it learned).
+        "gait": gait,
+        "run": args.run.as_ref().map(|p| p.display().to_string()),
         "source": if script.is_some() { "script" } else if args.joystick.is_some() { "joystick" } else { "keyboard" },
         "duration_s": duration,
         "fell": run.stats.fell,
@@ -348,9 +407,10 @@ pub fn run(args: &TeleopArgs) -> Result<(), String> {
     )
     .map_err(|e| e.to_string())?;
     println!("{}", serde_json::to_string(&summary).expect("serialises"));
-    if !args.headless {
+    if !args.headless && !args.rerun.wanted() {
         eprintln!(
-            "note: no live viewer window in this build (see docs/teleop-and-video.md); the figure is {}",
+            "note: the figure is {}; to watch a session live, give --rerun-serve PORT or \
+             --rerun-connect ADDR (docs/viewer.md)",
             args.out.join("teleop.png").display()
         );
     }

@@ -50,3 +50,93 @@ fn a_scripted_teleop_session_runs_headless_without_a_fall() {
         assert!((w[1][3] - w[0][3]).abs() <= 2.0 * dt + 1e-3);
     }
 }
+
+fn teleop(args: &[&str], out: &Path) -> std::process::Output {
+    let repo = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    Command::new(env!("CARGO_BIN_EXE_eemp"))
+        .current_dir(&repo)
+        .arg("teleop")
+        .args(args)
+        .arg("--out")
+        .arg(out)
+        .output()
+        .unwrap()
+}
+
+fn summary(out: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap()
+}
+
+/// The operator drives the walk's own run description: a run file's floor, gait and sensing
+/// hold, its command is replaced (and said so), and a learned controller can be driven too.
+#[test]
+fn teleop_drives_a_run_file_or_a_learned_controller() {
+    let d = tempfile::tempdir().unwrap();
+    let run = d.path().join("run.toml");
+    std::fs::write(
+        &run,
+        "gait = \"free\"\nspeed_mps = 0.5\nfloor_friction = 0.5\n[sensing]\nestimator = \"kf\"\nseed = 2\n",
+    )
+    .unwrap();
+    let script = ["--commands", "scripts/teleop/session.toml", "--headless"];
+    let out = d.path().join("run");
+    let o = teleop(
+        &[
+            &script[..],
+            &["--duration", "4", "--run", run.to_str().unwrap()],
+        ]
+        .concat(),
+        &out,
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("teleop: speed_mps of"), "{err}");
+    let s = summary(&out);
+    assert_eq!(
+        (s["method"].as_str(), s["gait"].as_str()),
+        (Some("EEMP (free)"), Some("free"))
+    );
+    assert_eq!(s["fell"], false, "{s}");
+    // Forward at up to 0.4 m/s from 1 s: it went forward, not the run file's 0.5 m/s × 3 s.
+    let dist = s["distance_m"].as_f64().unwrap();
+    assert!(dist > 0.3 && dist < 1.3, "{s}");
+
+    let out = d.path().join("policy");
+    let o = teleop(
+        &[
+            &script[..],
+            &[
+                "--duration",
+                "3",
+                "--controller",
+                "model-free",
+                "--policy",
+                "policies/a1_model_free_omni.safetensors",
+            ],
+        ]
+        .concat(),
+        &out,
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let s = summary(&out);
+    assert_eq!(s["method"], "model-free RL");
+    assert!(s["gait"].is_null(), "{s}");
+
+    // The run file stands in for the options it holds; a bad one is named.
+    let refused = |args: &[&str], says: &str| {
+        let out = d.path().join("refused");
+        let o = teleop(&[&script[..], args].concat(), &out);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{err}");
+        assert!(err.contains(says), "{says}: {err}");
+        assert!(!out.exists(), "nothing written");
+    };
+    refused(
+        &["--run", run.to_str().unwrap(), "--gait", "walk"],
+        "cannot be used with",
+    );
+    let bad = d.path().join("bad.toml");
+    std::fs::write(&bad, "floor_friction = 7.0\n").unwrap();
+    refused(&["--run", bad.to_str().unwrap()], "7");
+    refused(&["--controller", "eemp-rl"], "needs --policy");
+}

@@ -324,7 +324,10 @@ mod tests {
         // 99 steps of 0.4 mm: 39.6 mm of drift, under the 50 mm minimum.
         let stand = walk(0.0004);
         assert!((stand.distance_m - 0.0396).abs() < 1e-12);
-        assert_eq!((stand.cot, stand.cot_j_per_m, stand.cot_abs_power), (None, None, None));
+        assert_eq!(
+            (stand.cot, stand.cot_j_per_m, stand.cot_abs_power),
+            (None, None, None)
+        );
         assert!(stand.energy_j > 0.0);
         // 99 steps of 0.6 mm: 59.4 mm, over it; 5 W for 1 s (the first sample opens the
         // window) is 5 J over 0.0594 m.

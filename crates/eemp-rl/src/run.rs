@@ -20,9 +20,7 @@ use eemp_core::planner::{FreePairing, Gait, PlannerConfig, PlannerParams, Veloci
 use eemp_core::robot::RobotConfig;
 use eemp_sim::closed_loop::{Push, StateSource, StepRecord};
 use eemp_sim::sensors::SensorNoise;
-use eemp_sim::walk::{run_walk, VelocityProfile, WalkRun, WalkSpec};
-#[cfg(feature = "learning")]
-use eemp_sim::walk::{run_walk_with, StartPose};
+use eemp_sim::walk::{run_walk_commanded, StartPose, VelocityProfile, WalkRun, WalkSpec};
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
@@ -783,9 +781,28 @@ impl BuiltWalk {
 
     /// Runs the walk through the one closed loop, `observer` seeing every step.
     pub fn run(self, observer: impl FnMut(&StepRecord)) -> Result<WalkRun, String> {
+        let profile = self.spec.profile.clone();
+        self.run_commanded(&mut |t| profile.command_at(t), observer)
+    }
+
+    /// [`BuiltWalk::run`] with the command from `command_at(t)` at every step in place of the
+    /// description's speed or profile: an operator (`eemp teleop`). The start is the one of
+    /// the description's first command.
+    pub fn run_commanded(
+        self,
+        command_at: &mut dyn FnMut(f64) -> VelocityCommand,
+        observer: impl FnMut(&StepRecord),
+    ) -> Result<WalkRun, String> {
         let (robot, spec) = (&self.robot, &self.spec);
+        spec.validate().map_err(|e| e.to_string())?;
         match self.driver {
-            Driver::Eemp => run_walk(robot, spec, observer).map_err(|e| e.to_string()),
+            Driver::Eemp => {
+                let mut c =
+                    eemp_sim::walk::eemp_controller(robot, spec).map_err(|e| e.to_string())?;
+                let start = StartPose::eemp(robot, spec).map_err(|e| e.to_string())?;
+                run_walk_commanded(robot, spec, &start, &mut c, command_at, observer)
+                    .map_err(|e| e.to_string())
+            }
             #[cfg(feature = "learning")]
             Driver::Policy(policy) if policy.config.task == TaskKind::EempRl => {
                 use crate::tasks::eemp_rl::EempRlController;
@@ -796,7 +813,8 @@ impl BuiltWalk {
                     spec.profile.first_speed_mps(),
                 )?;
                 let mut c = EempRlController::new(robot, cfg, *policy)?;
-                run_walk_with(robot, spec, &start, &mut c, observer).map_err(|e| e.to_string())
+                run_walk_commanded(robot, spec, &start, &mut c, command_at, observer)
+                    .map_err(|e| e.to_string())
             }
             #[cfg(feature = "learning")]
             Driver::Policy(policy) => {
@@ -806,7 +824,7 @@ impl BuiltWalk {
                     robot.simulation.timestep_s,
                 )?;
                 let start = StartPose::from_joints(robot, c.default_pose());
-                let run = run_walk_with(robot, spec, &start, &mut c, observer)
+                let run = run_walk_commanded(robot, spec, &start, &mut c, command_at, observer)
                     .map_err(|e| e.to_string())?;
                 if c.invalid_steps > 0 {
                     eprintln!(
