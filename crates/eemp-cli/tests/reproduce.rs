@@ -122,7 +122,15 @@ fn check_passes_on_the_shipped_artifacts_and_fails_when_a_sweep_config_changes()
     assert!(check(root).status.success());
     let cfg = root.join("sweeps/paper.toml");
     let text = std::fs::read_to_string(&cfg).unwrap();
-    std::fs::write(&cfg, text.replace("seeds = [0]", "seeds = [0, 1]")).unwrap();
+    let edited: String = text
+        .lines()
+        .map(|l| match l.starts_with("seeds =") {
+            true => "seeds = [0, 1]\n".to_string(),
+            false => format!("{l}\n"),
+        })
+        .collect();
+    assert_ne!(edited, text, "the sweep config has a seeds line");
+    std::fs::write(&cfg, edited).unwrap();
     let o = check(root);
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert_eq!(o.status.code(), Some(1), "{stdout}");
