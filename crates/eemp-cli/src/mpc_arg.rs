@@ -50,9 +50,10 @@ pub struct MpcArgs {
     #[arg(long)]
     pub slow_speed: Option<f64>,
     /// The placement ellipses stay within the friction cone seen from the hip: r ≤ factor · μ̂
-    /// · X_z, μ̂ the slip detector's coefficient (`planner.ellipse_friction_factor`; 0: off).
-    #[arg(long, default_value_t = eemp_core::planner::PlannerConfig::default().ellipse_friction_factor)]
-    pub ellipse_friction_factor: f64,
+    /// · X_z, μ̂ the slip detector's coefficient (`planner.ellipse_friction_factor`, 0–3; 0:
+    /// off; default: the gait's, 1 for the trot and the free gait, 0 for the walk).
+    #[arg(long)]
+    pub ellipse_friction_factor: Option<f64>,
     /// Eq. (6)'s capture step (its feedback term) stays within the friction cone: at most
     /// factor · μ̂ · X_z, μ̂ the MPC's coefficient (`planner.touchdown_friction_factor`, 0–3;
     /// 0: the paper's unbounded step; default: the gait's, 0.5 for the trot and the free gait, 0

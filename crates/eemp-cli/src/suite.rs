@@ -71,7 +71,8 @@ pub struct MethodConfig {
     #[serde(default)]
     pub slow_speed_mps: Option<f64>,
     /// EEMP: the ellipses' cap by the slip detector's coefficient
-    /// (`planner.ellipse_friction_factor`; absent: its default 1; 0: off).
+    /// (`planner.ellipse_friction_factor`; absent: the gait's, 1 for the trot and the free gait,
+    /// 0 for the walk; 0: off).
     #[serde(default)]
     pub ellipse_friction_factor: Option<f64>,
     /// EEMP: the capture step's cap by the MPC's coefficient
@@ -186,7 +187,7 @@ impl MethodConfig {
             d.slow_speed_mps = self.slow_speed_mps;
             d.mpc_horizon = self.mpc_horizon;
             if let Some(f) = self.ellipse_friction_factor {
-                d.ellipse_friction_factor = f;
+                d.ellipse_friction_factor = Some(f);
             }
             d.touchdown_friction_factor = self.touchdown_friction_factor;
             if let Some(p) = self.free_pairing {

@@ -225,7 +225,7 @@ pub fn walk(d: &WalkDescription, o: &WalkOutputs) -> Result<(), String> {
         "retarget_swing": d.retarget_swing,
         "first_step_on_command": d.first_step_on_command,
         "max_accel_mps2": d.max_accel_mps2,
-        "ellipse_friction_factor": spec.planner.ellipse_friction_factor,
+        "ellipse_friction_factor": spec.planner.ellipse_friction_factor_in_force(),
         "touchdown_friction_factor": spec.planner.touchdown_friction_factor_in_force(),
         "preview_swings": d.preview_swings,
         // What the free gait's planner used (EEMP-RL keeps its training's, in the policy file).

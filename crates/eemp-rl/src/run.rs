@@ -193,8 +193,9 @@ pub struct WalkDescription {
     pub first_step_on_command: bool,
     pub preview_swings: bool,
     pub max_accel_mps2: f64,
-    /// `PlannerConfig::ellipse_friction_factor` (0: the ellipses ignore the slip detector).
-    pub ellipse_friction_factor: f64,
+    /// `PlannerConfig::ellipse_friction_factor` (0: the ellipses ignore the slip detector;
+    /// None: the gait's).
+    pub ellipse_friction_factor: Option<f64>,
     /// `PlannerConfig::touchdown_friction_factor` (0: eq. (6)'s capture step unbounded; None:
     /// the gait's).
     pub touchdown_friction_factor: Option<f64>,
@@ -346,7 +347,7 @@ impl WalkDescription {
             ),
             (
                 "--ellipse-friction-factor",
-                self.ellipse_friction_factor != defaults.ellipse_friction_factor,
+                self.ellipse_friction_factor.is_some(),
             ),
             (
                 "--touchdown-friction-factor",

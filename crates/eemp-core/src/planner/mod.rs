@@ -60,6 +60,22 @@ pub fn default_touchdown_friction_factor(gait: Gait) -> f64 {
     }
 }
 
+/// The gait's `PlannerConfig::ellipse_friction_factor` where the config leaves it unset: 1 for
+/// the trot and the free gait, 0 (off) for the walk. The walk moves one leg at a time, so
+/// ellipses shrunk by a μ̂ that a push's own slides lowered (to 0.15 · 0.31 = 0.047 m on a 0.3
+/// floor) slow the steps that catch the trunk: under 0.5 m/s side pushes on a 0.3 floor at 0.1
+/// m/s (filter, seed 1, the first push shifted over 20 phases of one walk cycle,
+/// `scripts/push-phases.sh`) it fell in 11 of 20 with the cone and 7 without. Everywhere else
+/// measured the walk's runs were the same either way (the 0.25, 0.2 and 0.8 → 0.2 → 0.8 floors
+/// at 0.1 / 0.3 / 0.5 m/s, seeds 1–3 and 11–16, 81 runs; the pushes at 0.3 and 0.5 m/s, 20
+/// phases each; the flat floor, seeds 1–12, with CoT 0.609 against 0.612 at 0.5 m/s).
+pub fn default_ellipse_friction_factor(gait: Gait) -> f64 {
+    match gait {
+        Gait::Walk => 0.0,
+        Gait::Trot | Gait::Free => 1.0,
+    }
+}
+
 /// How much wider than eq. (6)'s commanded touchdown offset an ellipse shrunk into the friction
 /// cone stays: at 1.25 the trot's table at 0.5 m/s (r_x 0.07 m, offset 0.0625 m) is left alone,
 /// where shrinking it to 0.056 m on a 0.2 floor made it fall 3 of 3 on the filter (1 of 3
@@ -103,11 +119,13 @@ pub struct PlannerConfig {
     pub first_step_on_command: bool,
     /// Keeps the placement ellipses inside the friction cone seen from the hip: r_x, r_y ≤
     /// factor · μ̂ · X_z, μ̂ the slip detector's coefficient ([`PlannerParams::within_friction_cone`]).
-    /// 1 by default; 0 turns it off. At the nominal μ̂ = 0.6 it never binds (Table I's widest
-    /// ellipse, 0.15 m, is below 0.6 · 0.28 m), so it only acts once slips have lowered μ̂: the
-    /// trot's table at 0.1 m/s (r_x 0.15 m, r_y 0.10 m) fell 3 of 3 on a whole 0.2 floor on the
-    /// filter and walked 3 of 3 with r_x 0.07 m, r_y 0.05 m.
-    pub ellipse_friction_factor: f64,
+    /// 0 turns it off. At the nominal μ̂ = 0.6 it never binds (Table I's widest ellipse,
+    /// 0.15 m, is below 0.6 · 0.28 m), so it only acts once slips have lowered μ̂: the trot's
+    /// table at 0.1 m/s (r_x 0.15 m, r_y 0.10 m) fell 3 of 3 on a whole 0.2 floor on the filter
+    /// and walked 3 of 3 with r_x 0.07 m, r_y 0.05 m. `None` (the default): the gait's, 1 for
+    /// the trot and the free gait, 0 for the walk ([`default_ellipse_friction_factor`];
+    /// [`PlannerConfig::ellipse_friction_factor_in_force`]).
+    pub ellipse_friction_factor: Option<f64>,
     /// Keeps eq. (6)'s feedback term √(X_z/g)·(V_cur − V_des) at most factor · μ̂ · X_z long
     /// (μ̂ the MPC's friction coefficient, the slip detector's where it runs;
     /// [`touchdown::progress`]); 0 turns it off. The paper's capture step assumes the foot can
@@ -130,7 +148,7 @@ impl Default for PlannerConfig {
             preview_swings: true,
             free_pairing: FreePairing::default(),
             first_step_on_command: false,
-            ellipse_friction_factor: 1.0,
+            ellipse_friction_factor: None,
             touchdown_friction_factor: None,
         }
     }
@@ -141,18 +159,21 @@ impl PlannerConfig {
         let [lo, hi] = PROGRESS_FACTOR_RANGE;
         check_range("planner.progress_factor", self.progress_factor, lo, hi)?;
         check_range("planner.max_accel_mps2", self.max_accel_mps2, 0.05, 20.0)?;
-        let [lo, hi] = ELLIPSE_FRICTION_FACTOR_RANGE;
-        check_range(
-            "planner.ellipse_friction_factor",
-            self.ellipse_friction_factor,
-            lo,
-            hi,
-        )?;
+        if let Some(f) = self.ellipse_friction_factor {
+            let [lo, hi] = ELLIPSE_FRICTION_FACTOR_RANGE;
+            check_range("planner.ellipse_friction_factor", f, lo, hi)?;
+        }
         if let Some(f) = self.touchdown_friction_factor {
             let [lo, hi] = TOUCHDOWN_FRICTION_FACTOR_RANGE;
             check_range("planner.touchdown_friction_factor", f, lo, hi)?;
         }
         self.free_pairing.validate("planner.free_pairing")
+    }
+
+    /// The ellipses' cone factor in force: the config's, else the gait's.
+    pub fn ellipse_friction_factor_in_force(&self) -> f64 {
+        self.ellipse_friction_factor
+            .unwrap_or_else(|| default_ellipse_friction_factor(self.gait))
     }
 
     /// The capture step's bound in force: the config's, else the gait's.
@@ -181,7 +202,7 @@ impl PlannerConfig {
         );
         params.within_friction_cone(
             mu,
-            self.ellipse_friction_factor,
+            self.ellipse_friction_factor_in_force(),
             [
                 STRIDE_MARGIN * offset.x.abs(),
                 STRIDE_MARGIN * offset.y.abs(),

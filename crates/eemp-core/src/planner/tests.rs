@@ -328,7 +328,7 @@ fn the_friction_cone_keeps_each_ellipse_at_least_eq6s_offset_wide() {
     assert_eq!(q.ellipse_ry_m, 0.05);
     // Factor 0: off.
     let off = PlannerConfig {
-        ellipse_friction_factor: 0.0,
+        ellipse_friction_factor: Some(0.0),
         ..config
     };
     assert_eq!(off.within_friction_cone(&p, 0.2, &slow), p);
@@ -374,4 +374,51 @@ fn a_touchdown_friction_factor_outside_its_range_is_refused_by_name() {
         };
         assert_eq!(c.touchdown_friction_factor_in_force(), factor, "{gait:?}");
     }
+}
+
+#[test]
+fn the_ellipses_cone_factor_is_the_gaits_unless_set_and_refused_out_of_range() {
+    for bad in [-0.1, 3.5, f64::NAN] {
+        let e = PlannerConfig {
+            ellipse_friction_factor: Some(bad),
+            ..Default::default()
+        }
+        .validate()
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("planner.ellipse_friction_factor"), "{e}");
+    }
+    // Unset: 1 for the trot and the free gait, 0 (off) for the walk; a value set wins.
+    for (gait, factor) in [(Gait::Trot, 1.0), (Gait::Free, 1.0), (Gait::Walk, 0.0)] {
+        let mut c = PlannerConfig {
+            gait,
+            ..Default::default()
+        };
+        assert_eq!(c.ellipse_friction_factor_in_force(), factor, "{gait:?}");
+        c.ellipse_friction_factor = Some(0.5);
+        assert_eq!(c.ellipse_friction_factor_in_force(), 0.5, "{gait:?}");
+    }
+    // The walk's default leaves a wide ellipse as the table has it at a low μ̂; the trot's caps
+    // it at μ̂ · X_z (0.15 · 0.31 = 0.0465 m), above eq. (6)'s offset at 0.1 m/s.
+    let p = PlannerParams {
+        swing_time_s: 0.25,
+        step_height_m: 0.05,
+        body_height_m: 0.31,
+        ellipse_rx_m: 0.07,
+        ellipse_ry_m: 0.05,
+    };
+    let cmd = VelocityCommand {
+        vx_mps: 0.1,
+        ..Default::default()
+    };
+    let walk = PlannerConfig {
+        gait: Gait::Walk,
+        ..Default::default()
+    };
+    let trot = PlannerConfig::default();
+    let w = walk.within_friction_cone(&p, 0.15, &cmd);
+    assert_eq!((w.ellipse_rx_m, w.ellipse_ry_m), (0.07, 0.05));
+    let t = trot.within_friction_cone(&p, 0.15, &cmd);
+    assert!((t.ellipse_rx_m - 0.0465).abs() < 1e-12, "{t:?}");
+    assert!((t.ellipse_ry_m - 0.0465).abs() < 1e-12, "{t:?}");
 }
