@@ -210,32 +210,29 @@ fn work_digest(
     inputs: &BTreeMap<String, Option<String>>,
     quick: bool,
 ) -> Result<String, String> {
+    let lines = |hashes: &BTreeMap<String, Option<String>>| -> String {
+        hashes
+            .iter()
+            .map(|(p, h)| format!("{p} {}\n", h.as_deref().unwrap_or("-")))
+            .collect()
+    };
     let code = hash_all(repo, &stage.code).map_err(|e| e.to_string())?;
-    let mut digest = format!("quick = {quick}\n");
-    for (p, h) in inputs {
-        digest.push_str(&format!("{p} {}\n", h.as_deref().unwrap_or("-")));
-    }
-    for (p, h) in code {
-        digest.push_str(&format!(
-            "{CODE_PREFIX}{p} {}\n",
-            h.as_deref().unwrap_or("-")
-        ));
-    }
-    Ok(digest)
+    Ok(format!(
+        "quick = {quick}\n{}{CODE_SECTION}{}",
+        lines(inputs),
+        lines(&code)
+    ))
 }
 
-/// Marks a code folder's line in a work digest.
-const CODE_PREFIX: &str = "code ";
+/// Opens the code folders' part of a work digest (an input's line ends in its hash, never so).
+const CODE_SECTION: &str = "[code]\n";
 
 /// Why the work stamped `old` is not valid for `new` (both from [`work_digest`]).
 fn why_digest_differs(old: &str, new: &str) -> &'static str {
-    let without_code = |d: &str| {
-        d.lines()
-            .filter(|l| !l.starts_with(CODE_PREFIX))
-            .collect::<Vec<_>>()
-            .join("\n")
-    };
-    if without_code(old) == without_code(new) {
+    fn inputs_part(d: &str) -> &str {
+        d.split_once(CODE_SECTION).map_or(d, |(inputs, _)| inputs)
+    }
+    if inputs_part(old) == inputs_part(new) {
         "the code it runs changed"
     } else {
         "its inputs changed"

@@ -188,18 +188,17 @@ impl MetricsAccumulator {
         let start = self.start_xy.unwrap_or(self.end_xy);
         let distance =
             ((self.end_xy[0] - start[0]).powi(2) + (self.end_xy[1] - start[1]).powi(2)).sqrt();
-        // The ratios' ΔD: none under MIN_COT_DISTANCE_M, so the CoTs are `None` there.
-        let cot_distance = if distance >= MIN_COT_DISTANCE_M {
-            distance
-        } else {
-            0.0
+        // Eq. (8)'s ΔD, only for a run that travelled (the CoTs are `None` otherwise).
+        let travelled_m = (distance >= MIN_COT_DISTANCE_M).then_some(distance);
+        let cot = |energy_j: f64| {
+            travelled_m.and_then(|d| cost_of_transport_dimensionless(energy_j, mass_kg, d))
         };
         WalkMetrics {
             distance_m: distance,
             path_length_m: self.path_m,
             energy_j: self.energy_j,
-            cot_j_per_m: cost_of_transport_j_per_m(self.energy_j, cot_distance),
-            cot: cost_of_transport_dimensionless(self.energy_j, mass_kg, cot_distance),
+            cot_j_per_m: travelled_m.and_then(|d| cost_of_transport_j_per_m(self.energy_j, d)),
+            cot: cot(self.energy_j),
             manipulability: (self.manip_samples > 0)
                 .then(|| self.manip_sum / self.manip_samples as f64),
             vel_rmse_mps: (self.vel_samples > 0)
@@ -216,16 +215,8 @@ impl MetricsAccumulator {
                 let total = self.joint_positive_work_j + self.joint_negative_work_j;
                 (total > 0.0).then(|| self.joint_negative_work_j / total)
             },
-            cot_abs_power: cost_of_transport_dimensionless(
-                self.joint_positive_work_j + self.joint_negative_work_j,
-                mass_kg,
-                cot_distance,
-            ),
-            cot_electrical: cost_of_transport_dimensionless(
-                self.electrical_energy_j,
-                mass_kg,
-                cot_distance,
-            ),
+            cot_abs_power: cot(self.joint_positive_work_j + self.joint_negative_work_j),
+            cot_electrical: cot(self.electrical_energy_j),
         }
     }
 }

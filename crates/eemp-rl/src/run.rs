@@ -20,7 +20,9 @@ use eemp_core::planner::{FreePairing, Gait, PlannerConfig, PlannerParams, Veloci
 use eemp_core::robot::RobotConfig;
 use eemp_sim::closed_loop::{Push, StateSource, StepRecord};
 use eemp_sim::sensors::SensorNoise;
-use eemp_sim::walk::{run_walk_commanded, StartPose, VelocityProfile, WalkRun, WalkSpec};
+#[cfg(feature = "learning")]
+use eemp_sim::walk::{run_walk_commanded, StartPose};
+use eemp_sim::walk::{VelocityProfile, WalkRun, WalkSpec};
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
@@ -798,10 +800,7 @@ impl BuiltWalk {
         spec.validate().map_err(|e| e.to_string())?;
         match self.driver {
             Driver::Eemp => {
-                let mut c =
-                    eemp_sim::walk::eemp_controller(robot, spec).map_err(|e| e.to_string())?;
-                let start = StartPose::eemp(robot, spec).map_err(|e| e.to_string())?;
-                run_walk_commanded(robot, spec, &start, &mut c, command_at, observer)
+                eemp_sim::walk::run_walk_eemp_commanded(robot, spec, command_at, observer)
                     .map_err(|e| e.to_string())
             }
             #[cfg(feature = "learning")]

@@ -454,10 +454,21 @@ pub fn run_walk(
     spec: &WalkSpec,
     observer: impl FnMut(&StepRecord),
 ) -> Result<WalkRun, ScenarioError> {
+    run_walk_eemp_commanded(robot, spec, &mut |t| spec.profile.command_at(t), observer)
+}
+
+/// [`run_walk`] with the command from `command_at(t)` in place of the spec's profile (an
+/// operator); EEMP starts as for the profile's first command.
+pub fn run_walk_eemp_commanded(
+    robot: &RobotConfig,
+    spec: &WalkSpec,
+    command_at: &mut dyn FnMut(f64) -> VelocityCommand,
+    observer: impl FnMut(&StepRecord),
+) -> Result<WalkRun, ScenarioError> {
     spec.validate()?;
     let mut controller = eemp_controller(robot, spec)?;
     let start = StartPose::eemp(robot, spec)?;
-    run_walk_with(robot, spec, &start, &mut controller, observer)
+    run_walk_commanded(robot, spec, &start, &mut controller, command_at, observer)
 }
 
 /// EEMP (planner, MPC, swing law) as the spec configures it: its planner and controller

@@ -348,57 +348,56 @@ fn a_command_capped_in_speed_keeps_its_direction_and_yaw_rate() {
     assert_eq!(c.with_speed_at_most(0.5 + 1e-12), c);
 }
 
+/// The planner's two friction-cone factors: each named in its refusal, each the gait's where
+/// unset, the value set where set.
 #[test]
-fn a_touchdown_friction_factor_outside_its_range_is_refused_by_name() {
-    for bad in [-0.1, 3.5, f64::NAN] {
-        let e = PlannerConfig {
-            touchdown_friction_factor: Some(bad),
-            ..Default::default()
+fn the_friction_factors_are_the_gaits_unless_set_and_refused_by_name() {
+    type Set = fn(&mut PlannerConfig, Option<f64>);
+    type InForce = fn(&PlannerConfig) -> f64;
+    let factors: [(&str, Set, InForce, [f64; 3]); 2] = [
+        (
+            "planner.touchdown_friction_factor",
+            |c, f| c.touchdown_friction_factor = f,
+            PlannerConfig::touchdown_friction_factor_in_force,
+            // Trot, free, walk: 0.5, 0.5 and 0 (unbounded).
+            [0.5, 0.5, 0.0],
+        ),
+        (
+            "planner.ellipse_friction_factor",
+            |c, f| c.ellipse_friction_factor = f,
+            PlannerConfig::ellipse_friction_factor_in_force,
+            // Trot, free, walk: 1, 1 and 0 (off).
+            [1.0, 1.0, 0.0],
+        ),
+    ];
+    for (name, set, in_force, defaults) in factors {
+        for bad in [-0.1, 3.5, f64::NAN] {
+            let mut c = PlannerConfig::default();
+            set(&mut c, Some(bad));
+            let e = c.validate().unwrap_err().to_string();
+            assert!(e.contains(name), "{e}");
         }
-        .validate()
-        .unwrap_err()
-        .to_string();
-        assert!(e.contains("planner.touchdown_friction_factor"), "{e}");
-    }
-    let off = PlannerConfig {
-        touchdown_friction_factor: Some(0.0),
-        ..Default::default()
-    };
-    assert!(off.validate().is_ok());
-    assert_eq!(off.touchdown_friction_factor_in_force(), 0.0);
-    // Unset: the gait's, 0.5 for the trot and the free gait, 0 (unbounded) for the walk.
-    for (gait, factor) in [(Gait::Trot, 0.5), (Gait::Free, 0.5), (Gait::Walk, 0.0)] {
-        let c = PlannerConfig {
-            gait,
-            ..Default::default()
-        };
-        assert_eq!(c.touchdown_friction_factor_in_force(), factor, "{gait:?}");
+        for (gait, factor) in [Gait::Trot, Gait::Free, Gait::Walk]
+            .into_iter()
+            .zip(defaults)
+        {
+            let mut c = PlannerConfig {
+                gait,
+                ..Default::default()
+            };
+            assert_eq!(in_force(&c), factor, "{name} {gait:?}");
+            for set_to in [0.0, 0.5] {
+                set(&mut c, Some(set_to));
+                assert!(c.validate().is_ok());
+                assert_eq!(in_force(&c), set_to, "{name} {gait:?}");
+            }
+        }
     }
 }
 
 #[test]
-fn the_ellipses_cone_factor_is_the_gaits_unless_set_and_refused_out_of_range() {
-    for bad in [-0.1, 3.5, f64::NAN] {
-        let e = PlannerConfig {
-            ellipse_friction_factor: Some(bad),
-            ..Default::default()
-        }
-        .validate()
-        .unwrap_err()
-        .to_string();
-        assert!(e.contains("planner.ellipse_friction_factor"), "{e}");
-    }
-    // Unset: 1 for the trot and the free gait, 0 (off) for the walk; a value set wins.
-    for (gait, factor) in [(Gait::Trot, 1.0), (Gait::Free, 1.0), (Gait::Walk, 0.0)] {
-        let mut c = PlannerConfig {
-            gait,
-            ..Default::default()
-        };
-        assert_eq!(c.ellipse_friction_factor_in_force(), factor, "{gait:?}");
-        c.ellipse_friction_factor = Some(0.5);
-        assert_eq!(c.ellipse_friction_factor_in_force(), 0.5, "{gait:?}");
-    }
-    // The walk's default leaves a wide ellipse as the table has it at a low μ̂; the trot's caps
+fn the_walks_ellipses_stay_as_the_table_has_them_at_a_low_friction() {
+    // The walk's default leaves eq. (5)'s ellipse as the table has it at a low μ̂; the trot's caps
     // it at μ̂ · X_z (0.15 · 0.31 = 0.0465 m), above eq. (6)'s offset at 0.1 m/s.
     let p = PlannerParams {
         swing_time_s: 0.25,
