@@ -23,6 +23,7 @@ eemp=${EEMP:-target/release/eemp}
 phases=${PHASES:-20}
 step=${STEP_S:-0.05}
 out=${OUT:-$(mktemp -d)}
+mkdir -p "$out"
 first=$(sed -n 's/^first_s *= *\([0-9.]*\).*/\1/p' "$scenario")
 if [ -z "$first" ] || ! grep -q '^\[push_schedule\]' "$scenario"; then
   echo "push-phases: $scenario has no [push_schedule] with first_s" >&2

@@ -40,8 +40,8 @@ pub struct MpcArgs {
     pub slip_max_speed: Option<f64>,
     /// With slip handling: once its coefficient is below this, the command's speed is capped at
     /// --slow-speed until the coefficient is back at 0.25 (`slip.slow_below_friction`: 0, never,
-    /// or above the coefficient's floor 0.15 up to 0.25; default: the gait's, the walk's 0.18,
-    /// none for the trot and the free gait).
+    /// or above the coefficient's floor (0.15; the walk's 0.2) up to 0.25; default: the gait's,
+    /// the walk's 0.205, none for the trot and the free gait).
     #[arg(long)]
     pub slow_below_friction: Option<f64>,
     /// With slip handling: the speed cap on a floor found slippery, m/s (`slip.slow_speed_mps`,

@@ -63,7 +63,7 @@ pub struct MethodConfig {
     #[serde(default)]
     pub slip_max_speed_mps: Option<f64>,
     /// EEMP with slip handling: the coefficient below which the speed is capped for a floor
-    /// found slippery (`slip.slow_below_friction`; absent: the gait's, the walk's 0.18; 0: never).
+    /// found slippery (`slip.slow_below_friction`; absent: the gait's, the walk's 0.205; 0: never).
     #[serde(default)]
     pub slow_below_friction: Option<f64>,
     /// EEMP with slip handling: that cap, m/s (`slip.slow_speed_mps`; absent: 0.3; refused

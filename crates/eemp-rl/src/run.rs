@@ -227,7 +227,7 @@ pub struct WalkDescription {
     pub slip_max_speed_mps: Option<f64>,
     /// With slip handling: the coefficient below which the command's speed is capped for a
     /// floor found slippery (`slip.slow_below_friction`; 0: never; default: the gait's, the
-    /// walk's 0.18).
+    /// walk's 0.205).
     pub slow_below_friction: Option<f64>,
     /// With slip handling: that cap, m/s (`slip.slow_speed_mps`; default 0.3).
     pub slow_speed_mps: Option<f64>,

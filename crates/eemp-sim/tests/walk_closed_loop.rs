@@ -354,7 +354,7 @@ fn the_walks_slip_handling_rests_at_the_nominal_coefficient_above_0_6_m_per_s() 
 #[test]
 fn on_a_floor_it_finds_slippery_the_walk_slows_to_its_cap() {
     // The walk with its table commanded 0.5 m/s on a floor of 0.2 (ground truth): slips take
-    // slip handling's coefficient below 0.18, and the planner's reference is capped at 0.3 m/s.
+    // slip handling's coefficient below 0.205, and the planner's reference is capped at 0.3 m/s.
     let tables = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tables");
     let mut s = spec(Gait::Walk, 0.5, 5.0, PlannerParams::default());
     s.params_table = Some(
