@@ -72,8 +72,9 @@
 //! default (0.18 then; 0.205 since its floor is 0.2, [`WALK_MIN_FRICTION`]): at 0.5 m/s it fell
 //! on the 0.2 and 0.25 floors and under 0.5 m/s pushes on the 0.3 floor in 7 of 9 runs (filter,
 //! seeds 1–3), its coefficient at its floor of 0.15 then within 2 s and the falls at 5–6 s;
-//! capped, it walked 24 of 24 on those floors and 0.8 → 0.2 → 0.8 (seeds 11–16). On the 0.8 floor its coefficient never went below 0.21 at 0.45–0.59 m/s (filter and
-//! ground truth, seeds 4–9, 48 runs: no cap, so no cost). Not for the trot and the free gait:
+//! capped, it walked 24 of 24 on those floors and 0.8 → 0.2 → 0.8 (seeds 11–16). On the 0.8
+//! floor its coefficient never went below 0.21 at 0.45–0.59 m/s (filter and ground truth,
+//! seeds 4–9, 48 runs: no cap, so no cost). Not for the trot and the free gait:
 //! their feet slide while the robot settles, the coefficient drops to its floor on the 0.8
 //! floor too, and the cap then took 6–12 % of a flat run at 0.5 m/s (2 of 6 seeds, RMSE up to
 //! 0.016 m/s worse).
