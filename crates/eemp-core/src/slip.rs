@@ -272,6 +272,7 @@ impl SlipConfig {
     /// walk's coefficient never goes below 0.2 ([`WALK_MIN_FRICTION`]), the others' below 0.15.
     pub fn default_for(gait: crate::planner::gait::Gait) -> Self {
         let walk = gait == crate::planner::gait::Gait::Walk;
+        let base = SlipConfig::default();
         SlipConfig {
             adapt_friction: true,
             hold_raise_fraction: if walk {
@@ -286,9 +287,9 @@ impl SlipConfig {
             min_friction: if walk {
                 WALK_MIN_FRICTION
             } else {
-                SlipConfig::default().min_friction
+                base.min_friction
             },
-            ..Default::default()
+            ..base
         }
     }
 
