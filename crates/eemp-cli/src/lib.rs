@@ -35,3 +35,4 @@ pub mod train_cmd;
 pub mod video;
 pub mod walk_cmd;
 pub mod walk_outputs;
+pub mod walk_support_arg;

@@ -9,7 +9,7 @@
 
 use crate::state_source_arg::KfOptions;
 use eemp_core::planner::params_table::ParamsTable;
-use eemp_core::planner::{FreePairing, Gait, PlannerConfig};
+use eemp_core::planner::{FreePairing, Gait, PlannerConfig, WalkSupport};
 use eemp_core::robot::RobotConfig;
 use eemp_rl::run::{Sensing, WalkDescription};
 use eemp_sim::closed_loop::StateSource;
@@ -92,6 +92,10 @@ pub struct MethodConfig {
     /// default; `{ pair_tolerance = 0.0, support_check = false }` is the earlier rule).
     #[serde(default)]
     pub free_pairing: Option<FreePairing>,
+    /// EEMP's walk: its support check (`WalkSupport`; absent: its default; `{ check = false }`
+    /// is the paper's fixed order).
+    #[serde(default)]
+    pub walk_support: Option<WalkSupport>,
     /// EEMP: the MPC's horizon in steps of its dt (absent: `MpcConfig`'s default).
     #[serde(default)]
     pub mpc_horizon: Option<usize>,
@@ -111,7 +115,7 @@ impl MethodConfig {
     /// The controller settings of its own only an EEMP method may have (besides
     /// `adapt_friction`), each with whether it is set: a policy refuses them, and the table
     /// EEMP-RL is measured against has none.
-    pub fn eemp_controller_settings(&self) -> [(bool, &'static str); 10] {
+    pub fn eemp_controller_settings(&self) -> [(bool, &'static str); 11] {
         [
             (self.initial_friction.is_some(), "initial_friction"),
             (self.hold_cap_after_slip.is_some(), "hold_cap_after_slip"),
@@ -128,6 +132,7 @@ impl MethodConfig {
                 "touchdown_friction_factor",
             ),
             (self.free_pairing.is_some(), "free_pairing"),
+            (self.walk_support.is_some(), "walk_support"),
             (self.mpc_horizon.is_some(), "mpc_horizon"),
         ]
     }
@@ -194,6 +199,10 @@ impl MethodConfig {
                 d.free_pair_tolerance = Some(p.pair_tolerance);
                 d.free_support_margin_m = Some(p.support_margin_m);
                 d.free_support_check = Some(p.support_check);
+            }
+            if let Some(w) = self.walk_support {
+                d.walk_support_margin_m = w.check.then_some(w.margin_m);
+                d.walk_support_check = Some(w.check);
             }
         }
         if self.kind == "eemp" {
@@ -486,9 +495,16 @@ impl SuiteConfig {
                             m.name
                         ));
                     }
+                    if m.walk_support.is_some() && g != Gait::Walk {
+                        return Err(format!(
+                            "method '{}': walk_support is for gait walk, not {g}",
+                            m.name
+                        ));
+                    }
                     PlannerConfig {
                         gait: g,
                         free_pairing: m.free_pairing.unwrap_or_default(),
+                        walk_support: m.walk_support.unwrap_or_default(),
                         ..Default::default()
                     }
                     .validate()

@@ -1016,6 +1016,7 @@ pub fn robustness(args: &SuiteArgs) -> Result<(), String> {
                     &a.policy,
                     a.adapt_friction,
                     a.free_pairing.unwrap_or_default(),
+                    a.walk_support.unwrap_or_default(),
                 ) == (
                     &b.kind,
                     &b.gait,
@@ -1023,6 +1024,7 @@ pub fn robustness(args: &SuiteArgs) -> Result<(), String> {
                     &b.policy,
                     b.adapt_friction,
                     b.free_pairing.unwrap_or_default(),
+                    b.walk_support.unwrap_or_default(),
                 )
         })
         .collect();

@@ -7,7 +7,7 @@ use eemp_rl::run::WalkDescription;
 use std::path::PathBuf;
 
 /// The options a run file replaces (clap's argument ids, the fields' names).
-pub const RUN_FILE_REPLACES: [&str; 43] = [
+pub const RUN_FILE_REPLACES: [&str; 45] = [
     "controller",
     "policy",
     "estimator",
@@ -36,6 +36,8 @@ pub const RUN_FILE_REPLACES: [&str; 43] = [
     "free_pair_tolerance",
     "free_support_margin",
     "free_unpaired",
+    "walk_support_margin",
+    "no_walk_support",
     "mpc_friction",
     "no_adapt_friction",
     "adapt_friction",
@@ -110,6 +112,8 @@ pub struct WalkArgs {
     #[command(flatten)]
     pub free: crate::free_arg::FreePairingArgs,
     #[command(flatten)]
+    pub walk_support: crate::walk_support_arg::WalkSupportArgs,
+    #[command(flatten)]
     pub mpc: crate::mpc_arg::MpcArgs,
     /// Rows per second in trace.csv (the simulation runs at 1 kHz; every step costs ≈ ¼ of the run).
     #[arg(long, default_value_t = 100.0)]
@@ -174,6 +178,8 @@ impl WalkArgs {
             free_support_margin_m: self.free.free_support_margin,
             free_support_check: None,
             free_unpaired: self.free.free_unpaired,
+            walk_support_margin_m: self.walk_support.walk_support_margin,
+            walk_support_check: self.walk_support.check(),
         }
     }
 }

@@ -231,6 +231,7 @@ pub fn walk(d: &WalkDescription, o: &WalkOutputs) -> Result<(), String> {
         // What the free gait's planner used (EEMP-RL keeps its training's, in the policy file).
         "free_pairing": (is_eemp && gait == Gait::Free)
             .then_some(spec.planner.free_pairing),
+        "walk_support": (is_eemp && gait == Gait::Walk).then_some(spec.planner.walk_support),
         "kf": spec.state_source.kf_config(),
         "duration_s": st.sim_time_s,
         // None when the walk ended (a fall) before the window opened: no metrics.

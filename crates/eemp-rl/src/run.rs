@@ -16,7 +16,9 @@ use eemp_core::config_error::load_toml;
 use eemp_core::control::Controller;
 use eemp_core::estimator::KfConfig;
 use eemp_core::planner::params_table::ParamsTable;
-use eemp_core::planner::{FreePairing, Gait, PlannerConfig, PlannerParams, VelocityCommand};
+use eemp_core::planner::{
+    FreePairing, Gait, PlannerConfig, PlannerParams, VelocityCommand, WalkSupport,
+};
 use eemp_core::robot::RobotConfig;
 use eemp_sim::closed_loop::{Push, StateSource, StepRecord};
 use eemp_sim::sensors::SensorNoise;
@@ -236,6 +238,11 @@ pub struct WalkDescription {
     /// Whether the free gait's support rule applies (`FreePairing::support_check`).
     pub free_support_check: Option<bool>,
     pub free_unpaired: bool,
+    /// The walk: how far inside the other feet's triangle the capture point must lie for the
+    /// next leg of its order to swing, m (`WalkSupport::margin_m`; None: the default).
+    pub walk_support_margin_m: Option<f64>,
+    /// The walk: whether that check applies (`WalkSupport::check`; None: the default, on).
+    pub walk_support_check: Option<bool>,
 }
 
 impl Default for WalkDescription {
@@ -281,6 +288,8 @@ impl Default for WalkDescription {
             free_support_margin_m: None,
             free_support_check: None,
             free_unpaired: false,
+            walk_support_margin_m: None,
+            walk_support_check: None,
         }
     }
 }
@@ -398,6 +407,19 @@ impl WalkDescription {
                  the rule it was trained with)",
                 self.controller
             ));
+        }
+        let walk_flags = self.walk_support_margin_m.is_some() || self.walk_support_check.is_some();
+        if walk_flags && (!is_eemp || gait != Gait::Walk) {
+            return Err(format!(
+                "--walk-support-margin and --no-walk-support are for --controller eemp --gait \
+                 walk, not --controller {} --gait {gait}",
+                self.controller
+            ));
+        }
+        if self.walk_support_check == Some(false) && self.walk_support_margin_m.is_some() {
+            return Err("--walk-support-margin: the walk's support check is off \
+                        (--no-walk-support or walk_support.check = false): drop one"
+                .into());
         }
         let planner_options = self.eemp_options_set();
         if !is_eemp && !planner_options.is_empty() {
@@ -533,6 +555,7 @@ impl WalkDescription {
             max_accel_mps2: self.max_accel_mps2,
             preview_swings: self.preview_swings,
             free_pairing: self.free_pairing(),
+            walk_support: self.walk_support(),
             first_step_on_command: self.first_step_on_command,
             ellipse_friction_factor: self.ellipse_friction_factor,
             touchdown_friction_factor: self.touchdown_friction_factor,
@@ -674,6 +697,17 @@ impl WalkDescription {
             params,
             params_table_path,
         })
+    }
+
+    fn walk_support(&self) -> WalkSupport {
+        let mut w = WalkSupport::default();
+        if let Some(m) = self.walk_support_margin_m {
+            w.margin_m = m;
+        }
+        if let Some(c) = self.walk_support_check {
+            w.check = c;
+        }
+        w
     }
 
     fn free_pairing(&self) -> FreePairing {
@@ -894,6 +928,30 @@ mod tests {
                 ..Default::default()
             },
             "are for --controller eemp --gait free",
+        );
+        bad(
+            WalkDescription {
+                walk_support_margin_m: Some(-0.05),
+                ..Default::default()
+            },
+            "are for --controller eemp --gait walk, not --controller eemp --gait trot",
+        );
+        bad(
+            WalkDescription {
+                gait: "walk".into(),
+                walk_support_margin_m: Some(-0.05),
+                walk_support_check: Some(false),
+                ..Default::default()
+            },
+            "the walk's support check is off",
+        );
+        bad(
+            WalkDescription {
+                gait: "walk".into(),
+                walk_support_margin_m: Some(0.1),
+                ..Default::default()
+            },
+            "planner.walk_support.margin_m",
         );
         // Slip handling's settings are named as given, where it is off and for a policy.
         bad(

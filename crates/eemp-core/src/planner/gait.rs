@@ -93,6 +93,75 @@ impl Default for FreePairing {
     }
 }
 
+/// Whether the walk lets the next leg of its order swing (issue 22; the paper's walk always
+/// does). A lone swing leaves the trunk on the other three feet, and in the walk's symmetric
+/// stance the trunk stands on the diagonal those feet span, so a velocity error towards the
+/// lifted foot's corner tips it over that diagonal: the MPC cannot brake while the centre of
+/// pressure it needs lies outside the triangle. Traced under a 0.5 m/s side push on a 0.3 floor
+/// (walk, 0.1 m/s, filter): the front leg on the pushed side lifted 0.03–0.06 s after the push,
+/// the trunk kept its 0.45–0.5 m/s sideways for the whole swing and gained 0.35 m/s forwards,
+/// and it ran out of its feet within the next steps. So a leg is passed over while the capture
+/// point of the velocity error (the trunk plus eq. (6)'s feedback term √(X_z/g)·(V_cur −
+/// V_des), unbounded) lies more than `-margin_m` outside the other three feet's triangle, and
+/// the next leg of the order whose triangle holds it swings instead (the order then goes on
+/// from that leg); when none does, the leg of the order swings. On command the capture point is
+/// the trunk, so a walk that tracks its command keeps its order.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct WalkSupport {
+    /// Whether the check applies (off: the fixed order, the paper's walk).
+    pub check: bool,
+    /// How far inside the other feet's triangle the capture point must lie, m (negative:
+    /// outside by up to that much is accepted).
+    pub margin_m: f64,
+}
+
+/// Allowed [`WalkSupport::margin_m`], m.
+pub const WALK_SUPPORT_MARGIN_RANGE: [f64; 2] = [-0.2, 0.0];
+
+impl Default for WalkSupport {
+    /// −0.05 m, measured (walk at 0.1 m/s, its table, filter, seed 1, the first push shifted
+    /// over 20 phases of a walk cycle, `scripts/push-phases.sh`) under 0.6 m/s side pushes on a
+    /// 0.3 floor, harder than the suite's so that the count tells rules apart: falls of 20
+    /// without the check 12; with a margin of −0.05 m 7, −0.03 m 7, −0.02 m 20 (an ordinary
+    /// walk's capture point lies up to ≈ 2 cm outside the triangle of the leg its order lifts,
+    /// and the walk then lost its order).
+    fn default() -> Self {
+        WalkSupport {
+            check: true,
+            margin_m: -0.05,
+        }
+    }
+}
+
+impl WalkSupport {
+    /// The paper's walk: the fixed order always.
+    pub const OFF: WalkSupport = WalkSupport {
+        check: false,
+        margin_m: -0.05,
+    };
+
+    pub fn validate(&self, prefix: &str) -> Result<(), ConfigError> {
+        let [lo, hi] = WALK_SUPPORT_MARGIN_RANGE;
+        check_range(&format!("{prefix}.margin_m"), self.margin_m, lo, hi)
+    }
+
+    /// `next`, or, when its lone swing would leave the capture point outside the support (a
+    /// NaN margin counts as outside), the first leg after it in `order` that would not; `next`
+    /// when none.
+    fn choose(&self, order: &[Leg; 4], next: Leg, margin_m: &dyn Fn(Leg) -> f64) -> Leg {
+        let supported = |leg: Leg| margin_m(leg) >= self.margin_m - MARGIN_TOLERANCE_M;
+        if !self.check || supported(next) {
+            return next;
+        }
+        let at = order.iter().position(|l| *l == next).expect("walk leg");
+        (1..4)
+            .map(|i| order[(at + i) % 4])
+            .find(|leg| supported(*leg))
+            .unwrap_or(next)
+    }
+}
+
 /// Lone-swing margins within this of `support_margin_m` count as at it, m: in a symmetric
 /// stance the trunk lies on both diagonals and every margin is 0 up to rounding.
 const MARGIN_TOLERANCE_M: f64 = 1e-6;
@@ -142,8 +211,9 @@ pub fn triangle_margin(point: &Vector2<f64>, tri: [Vector2<f64>; 3]) -> f64 {
 }
 
 /// What the swing choice reads: eq. (5)'s left-hand sides of the stance feet (> 1 is outside),
-/// and how far inside the other three feet's triangle the trunk would be if a leg swung alone
-/// (see [`triangle_margin`]; asked only by the free gait's support check, for the leg it picks).
+/// and how far inside the other three feet's triangle the support point would be if a leg
+/// swung alone (see [`triangle_margin`]; asked by the free gait's support check, with the
+/// trunk's origin, and by the walk's, [`WalkSupport`], with the capture point).
 #[derive(Clone, Copy)]
 pub struct SwingInputs<'a> {
     pub ellipse_values: &'a LegMap<f64>,
@@ -159,6 +229,7 @@ pub fn next_swing(
     inputs: SwingInputs,
     previous: &[Leg],
     pairing: &FreePairing,
+    walk_support: &WalkSupport,
 ) -> Vec<Leg> {
     let ellipse_values = inputs.ellipse_values;
     let outside: Vec<Leg> = Leg::ALL
@@ -188,7 +259,7 @@ pub fn next_swing(
                 }
                 None => most_outside(&outside, ellipse_values),
             };
-            vec![next]
+            vec![walk_support.choose(order, next, inputs.lone_swing_margin_m)]
         }
         Gait::Free => {
             let candidates: Vec<Leg> = outside
@@ -270,6 +341,7 @@ mod tests {
             },
             previous,
             pairing,
+            &WalkSupport::default(),
         )
     }
 
@@ -310,6 +382,7 @@ mod tests {
                 },
                 &prev,
                 &FreePairing::default(),
+                &WalkSupport::default(),
             );
             seen.extend(&prev);
         }
@@ -349,6 +422,75 @@ mod tests {
                 Leg::FrontLeft
             ]
         );
+    }
+
+    #[test]
+    fn the_walk_passes_over_a_leg_whose_lone_swing_would_leave_the_capture_point_outside() {
+        let outside = values(&[Leg::FrontLeft]);
+        let walk = |margins: LegMap<f64>, support: WalkSupport| {
+            super::next_swing(
+                Gait::Walk,
+                SwingInputs {
+                    ellipse_values: &outside,
+                    lone_swing_margin_m: &|leg| margins[leg],
+                    backward: false,
+                },
+                // After RL comes FL.
+                &[Leg::RearLeft],
+                &FreePairing::default(),
+                &support,
+            )
+        };
+        let on = WalkSupport::default();
+        // FL's margin at the threshold (−0.05 m) still swings; an ordinary walk's ≈ −0.02 too.
+        let mut m = LegMap::splat(0.03);
+        m[Leg::FrontLeft] = -0.05;
+        assert_eq!(walk(m, on), vec![Leg::FrontLeft]);
+        // 7 cm outside (a side push towards FL): the next leg of the order, RR, swings.
+        m[Leg::FrontLeft] = -0.07;
+        assert_eq!(walk(m, on), vec![Leg::RearRight]);
+        // RR unsupported too: FR, the one after it.
+        m[Leg::RearRight] = -0.06;
+        assert_eq!(walk(m, on), vec![Leg::FrontRight]);
+        // None supported (or a NaN margin): the order's own leg.
+        assert_eq!(walk(LegMap::splat(-0.1), on), vec![Leg::FrontLeft]);
+        assert_eq!(walk(LegMap::splat(f64::NAN), on), vec![Leg::FrontLeft]);
+        // Off: the paper's fixed order whatever the margins.
+        m[Leg::FrontRight] = 0.03;
+        assert_eq!(walk(m, WalkSupport::OFF), vec![Leg::FrontLeft]);
+        // The trot and the free gait ignore it (their choice with and without is the same).
+        for gait in [Gait::Trot, Gait::Free] {
+            let choose = |support: WalkSupport| {
+                super::next_swing(
+                    gait,
+                    SwingInputs {
+                        ellipse_values: &outside,
+                        lone_swing_margin_m: &|_| -0.1,
+                        backward: false,
+                    },
+                    &[Leg::RearLeft],
+                    &FreePairing::default(),
+                    &support,
+                )
+            };
+            assert_eq!(choose(on), choose(WalkSupport::OFF), "{gait}");
+        }
+    }
+
+    #[test]
+    fn walk_support_margins_outside_their_range_are_refused_by_name() {
+        for bad in [0.01, -0.3, f64::NAN] {
+            let err = WalkSupport {
+                check: true,
+                margin_m: bad,
+            }
+            .validate("planner.walk_support")
+            .unwrap_err()
+            .to_string();
+            assert!(err.contains("planner.walk_support.margin_m"), "{err}");
+            assert!(bad.is_nan() || err.contains("[-0.2, 0]"), "{err}");
+        }
+        assert!(WalkSupport::default().validate("p").is_ok());
     }
 
     #[test]

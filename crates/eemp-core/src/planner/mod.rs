@@ -21,7 +21,7 @@ use crate::controller::{Plan, PlanGeometry};
 use crate::kinematics::LegKinematics;
 use crate::leg::{Leg, LegMap};
 use crate::leg_control::FootReference;
-pub use gait::{FreePairing, Gait};
+pub use gait::{FreePairing, Gait, WalkSupport};
 use nalgebra::{Rotation3, Vector2, Vector3};
 pub use params::PlannerParams;
 use serde::{Deserialize, Serialize};
@@ -112,6 +112,10 @@ pub struct PlannerConfig {
     /// When the free gait swings a leg's diagonal partner with it (see [`FreePairing`]); the
     /// trot and the walk ignore it.
     pub free_pairing: FreePairing,
+    /// Whether the walk passes over a leg whose lone swing would leave the capture point of the
+    /// velocity error outside the other feet (see [`WalkSupport`]); the trot and the free gait
+    /// ignore it.
+    pub walk_support: WalkSupport,
     /// Take the first step as soon as a horizontal speed is commanded, instead of waiting for
     /// a foot to leave its ellipse (every ellipse value is raised by 1 until the first swing):
     /// with a wide ellipse the trunk otherwise runs up to r_x ahead of its feet before the
@@ -147,6 +151,7 @@ impl Default for PlannerConfig {
             retarget_swing: true,
             preview_swings: true,
             free_pairing: FreePairing::default(),
+            walk_support: WalkSupport::default(),
             first_step_on_command: false,
             ellipse_friction_factor: None,
             touchdown_friction_factor: None,
@@ -167,7 +172,8 @@ impl PlannerConfig {
             let [lo, hi] = TOUCHDOWN_FRICTION_FACTOR_RANGE;
             check_range("planner.touchdown_friction_factor", f, lo, hi)?;
         }
-        self.free_pairing.validate("planner.free_pairing")
+        self.free_pairing.validate("planner.free_pairing")?;
+        self.walk_support.validate("planner.walk_support")
     }
 
     /// The ellipses' cone factor in force: the config's, else the gait's.
@@ -548,25 +554,45 @@ impl EemPlanner {
         self.choose_swing(
             &values,
             &self.previous_legs,
-            &state.body.p_world,
+            &self.support_point(state, params),
             feet_world,
         )
     }
 
-    /// The gait rule's choice, given where the trunk and the feet are (world frame; the support
-    /// check uses the trunk's origin, not the centre of mass the MPC's model offsets from it).
+    /// The point whose support the swing choice checks (world, m): the trunk's origin for the
+    /// free gait; for the walk the capture point of the velocity error, the trunk carried by
+    /// eq. (6)'s feedback term ([`WalkSupport`]). At the commanded velocity both are the trunk.
+    fn support_point(&self, state: &RobotState, params: &PlannerParams) -> Vector3<f64> {
+        let body = &state.body;
+        if self.config.gait != Gait::Walk {
+            return body.p_world;
+        }
+        let v = body.v_heading();
+        let error = touchdown::feedback(
+            &self.v_ref,
+            &Vector2::new(v.x, v.y),
+            params.body_height_m,
+        );
+        body.p_world
+            + Rotation3::from_axis_angle(&Vector3::z_axis(), body.rpy().z)
+                * Vector3::new(error.x, error.y, 0.0)
+    }
+
+    /// The gait rule's choice, given the point whose support it checks and where the feet are
+    /// (world frame; [`Self::support_point`]: the trunk's origin, not the centre of mass the
+    /// MPC's model offsets from it).
     fn choose_swing(
         &self,
         values: &LegMap<f64>,
         previous: &[Leg],
-        p_trunk_world: &Vector3<f64>,
+        p_support_world: &Vector3<f64>,
         feet_world: &LegMap<Vector3<f64>>,
     ) -> Vec<Leg> {
         let xy = |v: &Vector3<f64>| Vector2::new(v.x, v.y);
         let lone_swing_margin_m = |leg: Leg| {
             let mut others = Leg::ALL.into_iter().filter(|l| *l != leg);
             let mut next = || xy(&feet_world[others.next().expect("three other legs")]);
-            gait::triangle_margin(&xy(p_trunk_world), [next(), next(), next()])
+            gait::triangle_margin(&xy(p_support_world), [next(), next(), next()])
         };
         gait::next_swing(
             self.config.gait,
@@ -578,6 +604,7 @@ impl EemPlanner {
             },
             previous,
             &self.config.free_pairing,
+            &self.config.walk_support,
         )
     }
 

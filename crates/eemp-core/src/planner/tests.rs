@@ -147,6 +147,45 @@ fn no_gait_starts_a_swing_while_another_runs() {
 }
 
 #[test]
+fn the_walk_checks_its_swing_against_the_capture_point_of_the_velocity_error() {
+    let kin = LegKinematics::new(&RobotConfig::a1());
+    let params = PlannerParams::default();
+    let cmd = VelocityCommand::default();
+    // After RL the walk's order lifts FL; FL is 8 cm behind its hip (outside, so a swing starts).
+    let choice = |vy_mps: f64, support: WalkSupport| {
+        let mut p = EemPlanner::new(
+            PlannerConfig {
+                gait: Gait::Walk,
+                walk_support: support,
+                ..Default::default()
+            },
+            kin.clone(),
+            0.02,
+            10,
+            0.025,
+        )
+        .unwrap();
+        p.previous_legs = vec![Leg::RearLeft];
+        let (mut state, mut feet) = standing(&kin, 0.0);
+        state.body.v_world = Vector3::new(0.0, vy_mps, 0.0);
+        feet[Leg::FrontLeft].x -= 0.08;
+        let plan = p.plan(0.0, &state, &feet, &cmd, &params, NOMINAL_MU);
+        let swinging: Vec<Leg> = Leg::ALL.into_iter().filter(|l| !plan.stance[*l]).collect();
+        assert_eq!(swinging.len(), 1, "the walk lifts one leg: {swinging:?}");
+        swinging[0]
+    };
+    let on = WalkSupport::default();
+    // Standing still and pushed to the right (away from FL): FL, as the order says.
+    assert_eq!(choice(0.0, on), Leg::FrontLeft);
+    assert_eq!(choice(-0.5, on), Leg::FrontLeft);
+    // Pushed left at 0.5 m/s: the capture point, √(0.31/9.81)·0.5 = 8.9 cm left of the trunk,
+    // lies ≈ 7 cm outside the FR–RR–RL triangle, so FL waits and RR (FR–FL–RL holds it) swings.
+    assert_eq!(choice(0.5, on), Leg::RearRight);
+    // The paper's walk lifts FL regardless.
+    assert_eq!(choice(0.5, WalkSupport::OFF), Leg::FrontLeft);
+}
+
+#[test]
 fn retargeting_moves_the_touchdown_with_the_measured_velocity() {
     let robot = RobotConfig::a1();
     let kin = LegKinematics::new(&robot);

@@ -23,7 +23,7 @@ pub fn progress(
     factor: f64,
     feedback_limit_m: f64,
 ) -> Vector2<f64> {
-    let feedback = (v_cur - v_des) * (body_height_m / GRAVITY).sqrt();
+    let feedback = feedback(v_des, v_cur, body_height_m);
     let norm = feedback.norm();
     let feedback = if norm > feedback_limit_m {
         feedback * (feedback_limit_m / norm)
@@ -31,6 +31,12 @@ pub fn progress(
         feedback
     };
     v_des * (swing_time_s * factor) + feedback
+}
+
+/// Eq. (6)'s feedback term √(X_z/g)·(V_cur − V_des) (heading frame, m): the capture point of the
+/// velocity error of a linear inverted pendulum X_z high, relative to the trunk.
+pub fn feedback(v_des: &Vector2<f64>, v_cur: &Vector2<f64>, body_height_m: f64) -> Vector2<f64> {
+    (v_cur - v_des) * (body_height_m / GRAVITY).sqrt()
 }
 
 #[cfg(test)]
