@@ -568,11 +568,7 @@ impl EemPlanner {
             return body.p_world;
         }
         let v = body.v_heading();
-        let error = touchdown::feedback(
-            &self.v_ref,
-            &Vector2::new(v.x, v.y),
-            params.body_height_m,
-        );
+        let error = touchdown::feedback(&self.v_ref, &Vector2::new(v.x, v.y), params.body_height_m);
         body.p_world
             + Rotation3::from_axis_angle(&Vector3::z_axis(), body.rpy().z)
                 * Vector3::new(error.x, error.y, 0.0)
