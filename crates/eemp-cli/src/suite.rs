@@ -202,6 +202,7 @@ impl MethodConfig {
             }
             if let Some(w) = self.walk_support {
                 d.walk_support_margin_m = w.check.then_some(w.margin_m);
+                d.walk_support_max_speed_mps = w.check.then_some(w.max_speed_mps);
                 d.walk_support_check = Some(w.check);
             }
         }

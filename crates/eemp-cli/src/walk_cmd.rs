@@ -7,7 +7,7 @@ use eemp_rl::run::WalkDescription;
 use std::path::PathBuf;
 
 /// The options a run file replaces (clap's argument ids, the fields' names).
-pub const RUN_FILE_REPLACES: [&str; 45] = [
+pub const RUN_FILE_REPLACES: [&str; 46] = [
     "controller",
     "policy",
     "estimator",
@@ -37,6 +37,7 @@ pub const RUN_FILE_REPLACES: [&str; 45] = [
     "free_support_margin",
     "free_unpaired",
     "walk_support_margin",
+    "walk_support_max_speed",
     "no_walk_support",
     "mpc_friction",
     "no_adapt_friction",
@@ -180,6 +181,7 @@ impl WalkArgs {
             free_unpaired: self.free.free_unpaired,
             walk_support_margin_m: self.walk_support.walk_support_margin,
             walk_support_check: self.walk_support.check(),
+            walk_support_max_speed_mps: self.walk_support.walk_support_max_speed,
         }
     }
 }

@@ -243,6 +243,9 @@ pub struct WalkDescription {
     pub walk_support_margin_m: Option<f64>,
     /// The walk: whether that check applies (`WalkSupport::check`; None: the default, on).
     pub walk_support_check: Option<bool>,
+    /// The walk: the commanded speed from which that check is off, m/s
+    /// (`WalkSupport::max_speed_mps`; 0: none; None: the default, 0.6).
+    pub walk_support_max_speed_mps: Option<f64>,
 }
 
 impl Default for WalkDescription {
@@ -290,6 +293,7 @@ impl Default for WalkDescription {
             free_unpaired: false,
             walk_support_margin_m: None,
             walk_support_check: None,
+            walk_support_max_speed_mps: None,
         }
     }
 }
@@ -408,18 +412,21 @@ impl WalkDescription {
                 self.controller
             ));
         }
-        let walk_flags = self.walk_support_margin_m.is_some() || self.walk_support_check.is_some();
-        if walk_flags && (!is_eemp || gait != Gait::Walk) {
+        let walk_tuning =
+            self.walk_support_margin_m.is_some() || self.walk_support_max_speed_mps.is_some();
+        if (walk_tuning || self.walk_support_check.is_some()) && (!is_eemp || gait != Gait::Walk) {
             return Err(format!(
-                "--walk-support-margin and --no-walk-support are for --controller eemp --gait \
-                 walk, not --controller {} --gait {gait}",
+                "--walk-support-margin, --walk-support-max-speed and --no-walk-support are for \
+                 --controller eemp --gait walk, not --controller {} --gait {gait}",
                 self.controller
             ));
         }
-        if self.walk_support_check == Some(false) && self.walk_support_margin_m.is_some() {
-            return Err("--walk-support-margin: the walk's support check is off \
-                        (--no-walk-support or walk_support.check = false): drop one"
-                .into());
+        if self.walk_support_check == Some(false) && walk_tuning {
+            return Err(
+                "--walk-support-margin, --walk-support-max-speed: the walk's support check is \
+                 off (--no-walk-support or walk_support.check = false): drop one or the other"
+                    .into(),
+            );
         }
         let planner_options = self.eemp_options_set();
         if !is_eemp && !planner_options.is_empty() {
@@ -706,6 +713,9 @@ impl WalkDescription {
         }
         if let Some(c) = self.walk_support_check {
             w.check = c;
+        }
+        if let Some(v) = self.walk_support_max_speed_mps {
+            w.max_speed_mps = v;
         }
         w
     }

@@ -105,7 +105,11 @@ impl Default for FreePairing {
 /// V_des), unbounded) lies more than `-margin_m` outside the other three feet's triangle, and
 /// the next leg of the order whose triangle holds it swings instead (the order then goes on
 /// from that leg); when none does, the leg of the order swings. On command the capture point is
-/// the trunk, so a walk that tracks its command keeps its order.
+/// the trunk, so a walk that tracks its command keeps its order. Only below a commanded speed
+/// (`max_speed_mps`, 0.6 m/s, where the walk's slip handling stops too): at 0.7–1.0 m/s the
+/// walk tracks 0.2 m/s behind its command and its trunk runs ahead of its feet, the check
+/// passed over legs there, and on the flat floor at 1.0 m/s (table, ground truth, seed 4) the
+/// walk fell.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct WalkSupport {
@@ -114,10 +118,23 @@ pub struct WalkSupport {
     /// How far inside the other feet's triangle the capture point must lie, m (negative:
     /// outside by up to that much is accepted).
     pub margin_m: f64,
+    /// The check runs while the commanded horizontal speed is below this, m/s (0: at every
+    /// speed).
+    pub max_speed_mps: f64,
 }
 
 /// Allowed [`WalkSupport::margin_m`], m.
 pub const WALK_SUPPORT_MARGIN_RANGE: [f64; 2] = [-0.2, 0.0];
+
+/// [`WalkSupport::margin_m`] by default, m (see [`WalkSupport::default`]).
+pub const DEFAULT_WALK_SUPPORT_MARGIN_M: f64 = -0.05;
+
+/// [`WalkSupport::max_speed_mps`] by default, m/s (the walk's slip handling's too,
+/// `slip::WALK_MAX_SPEED_MPS`).
+pub const DEFAULT_WALK_SUPPORT_MAX_SPEED_MPS: f64 = 0.6;
+
+/// Allowed [`WalkSupport::max_speed_mps`], m/s.
+pub const WALK_SUPPORT_MAX_SPEED_RANGE: [f64; 2] = [0.0, 10.0];
 
 impl Default for WalkSupport {
     /// −0.05 m, measured (walk at 0.1 m/s, its table, filter, seed 1, the first push shifted
@@ -129,7 +146,8 @@ impl Default for WalkSupport {
     fn default() -> Self {
         WalkSupport {
             check: true,
-            margin_m: -0.05,
+            margin_m: DEFAULT_WALK_SUPPORT_MARGIN_M,
+            max_speed_mps: DEFAULT_WALK_SUPPORT_MAX_SPEED_MPS,
         }
     }
 }
@@ -138,12 +156,30 @@ impl WalkSupport {
     /// The paper's walk: the fixed order always.
     pub const OFF: WalkSupport = WalkSupport {
         check: false,
-        margin_m: -0.05,
+        margin_m: DEFAULT_WALK_SUPPORT_MARGIN_M,
+        max_speed_mps: DEFAULT_WALK_SUPPORT_MAX_SPEED_MPS,
     };
 
     pub fn validate(&self, prefix: &str) -> Result<(), ConfigError> {
         let [lo, hi] = WALK_SUPPORT_MARGIN_RANGE;
-        check_range(&format!("{prefix}.margin_m"), self.margin_m, lo, hi)
+        check_range(&format!("{prefix}.margin_m"), self.margin_m, lo, hi)?;
+        let [lo, hi] = WALK_SUPPORT_MAX_SPEED_RANGE;
+        check_range(
+            &format!("{prefix}.max_speed_mps"),
+            self.max_speed_mps,
+            lo,
+            hi,
+        )
+    }
+
+    /// The check as it applies under a command of this horizontal speed (m/s): off from
+    /// `max_speed_mps` on.
+    pub fn in_force(&self, command_speed_mps: f64) -> WalkSupport {
+        let fast = self.max_speed_mps > 0.0 && command_speed_mps >= self.max_speed_mps;
+        WalkSupport {
+            check: self.check && !fast,
+            ..*self
+        }
     }
 
     /// `next`, or, when its lone swing would leave the capture point outside the support (a
@@ -455,9 +491,16 @@ mod tests {
         // None supported (or a NaN margin): the order's own leg.
         assert_eq!(walk(LegMap::splat(-0.1), on), vec![Leg::FrontLeft]);
         assert_eq!(walk(LegMap::splat(f64::NAN), on), vec![Leg::FrontLeft]);
-        // Off: the paper's fixed order whatever the margins.
+        // Off: the paper's fixed order whatever the margins; so from 0.6 m/s commanded on.
         m[Leg::FrontRight] = 0.03;
         assert_eq!(walk(m, WalkSupport::OFF), vec![Leg::FrontLeft]);
+        assert_eq!(walk(m, on.in_force(0.59)), vec![Leg::FrontRight]);
+        assert_eq!(walk(m, on.in_force(0.6)), vec![Leg::FrontLeft]);
+        let unlimited = WalkSupport {
+            max_speed_mps: 0.0,
+            ..on
+        };
+        assert_eq!(walk(m, unlimited.in_force(5.0)), vec![Leg::FrontRight]);
         // The trot and the free gait ignore it (their choice with and without is the same).
         for gait in [Gait::Trot, Gait::Free] {
             let choose = |support: WalkSupport| {
@@ -481,14 +524,25 @@ mod tests {
     fn walk_support_margins_outside_their_range_are_refused_by_name() {
         for bad in [0.01, -0.3, f64::NAN] {
             let err = WalkSupport {
-                check: true,
                 margin_m: bad,
+                ..WalkSupport::default()
             }
             .validate("planner.walk_support")
             .unwrap_err()
             .to_string();
             assert!(err.contains("planner.walk_support.margin_m"), "{err}");
             assert!(bad.is_nan() || err.contains("[-0.2, 0]"), "{err}");
+        }
+        for bad in [-0.1, 11.0] {
+            let err = WalkSupport {
+                max_speed_mps: bad,
+                ..WalkSupport::default()
+            }
+            .validate("planner.walk_support")
+            .unwrap_err()
+            .to_string();
+            assert!(err.contains("planner.walk_support.max_speed_mps"), "{err}");
+            assert!(err.contains("[0, 10]"), "{err}");
         }
         assert!(WalkSupport::default().validate("p").is_ok());
     }

@@ -394,7 +394,9 @@ impl EemPlanner {
         let kick = self.config.first_step_on_command
             && self.previous_legs.is_empty()
             && v_cmd.norm() >= 0.01;
-        let legs = self.next_legs(state, feet_world, params, &stance, kick);
+        // The walk's support check as it applies under this command.
+        let walk_support = self.config.walk_support.in_force(v_cmd.norm());
+        let legs = self.next_legs(state, feet_world, params, &stance, kick, &walk_support);
         if !legs.is_empty() {
             for (leg, swing) in
                 self.start_swing(t, state, feet_world, &legs, params, ground_z, &prog)
@@ -422,7 +424,7 @@ impl EemPlanner {
             }
         };
         let (contacts_horizon, feet_horizon_world) =
-            self.contact_schedule(t, state, feet_world, params, ground_z);
+            self.contact_schedule(t, state, feet_world, params, ground_z, &walk_support);
         let swing = self
             .swings
             .map(|_, s| s.map(|s| world_to_body(&s.trajectory.sample(t - s.start_s), state)));
@@ -465,6 +467,7 @@ impl EemPlanner {
         feet_world: &LegMap<Vector3<f64>>,
         params: &PlannerParams,
         ground_z: f64,
+        walk_support: &WalkSupport,
     ) -> (Vec<LegMap<bool>>, Vec<LegMap<Vector3<f64>>>) {
         let body = &state.body;
         let heading = Rotation3::from_axis_angle(&Vector3::z_axis(), body.rpy().z);
@@ -507,7 +510,7 @@ impl EemPlanner {
                     )
                 });
                 let trunk = body.p_world + v_ref_world * (tk - t);
-                let legs = self.choose_swing(&values, &previous, &trunk, &feet);
+                let legs = self.choose_swing(&values, &previous, &trunk, &feet, walk_support);
                 let end = tk + params.swing_time_s;
                 // Eq. (6) with the trunk on command: only the feed-forward term.
                 let prog = heading
@@ -542,6 +545,7 @@ impl EemPlanner {
         params: &PlannerParams,
         stance: &LegMap<bool>,
         first_step_now: bool,
+        walk_support: &WalkSupport,
     ) -> Vec<Leg> {
         if stance.0.iter().any(|s| !s) {
             return Vec::new();
@@ -556,6 +560,7 @@ impl EemPlanner {
             &self.previous_legs,
             &self.support_point(state, params),
             feet_world,
+            walk_support,
         )
     }
 
@@ -576,13 +581,15 @@ impl EemPlanner {
 
     /// The gait rule's choice, given the point whose support it checks and where the feet are
     /// (world frame; [`Self::support_point`]: the trunk's origin, not the centre of mass the
-    /// MPC's model offsets from it).
+    /// MPC's model offsets from it), with the walk's support check as in force under the
+    /// command ([`WalkSupport::in_force`]).
     fn choose_swing(
         &self,
         values: &LegMap<f64>,
         previous: &[Leg],
         p_support_world: &Vector3<f64>,
         feet_world: &LegMap<Vector3<f64>>,
+        walk_support: &WalkSupport,
     ) -> Vec<Leg> {
         let xy = |v: &Vector3<f64>| Vector2::new(v.x, v.y);
         let lone_swing_margin_m = |leg: Leg| {
@@ -600,7 +607,7 @@ impl EemPlanner {
             },
             previous,
             &self.config.free_pairing,
-            &self.config.walk_support,
+            walk_support,
         )
     }
 

@@ -150,9 +150,9 @@ fn no_gait_starts_a_swing_while_another_runs() {
 fn the_walk_checks_its_swing_against_the_capture_point_of_the_velocity_error() {
     let kin = LegKinematics::new(&RobotConfig::a1());
     let params = PlannerParams::default();
-    let cmd = VelocityCommand::default();
+    let still = VelocityCommand::default();
     // After RL the walk's order lifts FL; FL is 8 cm behind its hip (outside, so a swing starts).
-    let choice = |vy_mps: f64, support: WalkSupport| {
+    let choice = |vy_mps: f64, support: WalkSupport, cmd: VelocityCommand| {
         let mut p = EemPlanner::new(
             PlannerConfig {
                 gait: Gait::Walk,
@@ -176,13 +176,19 @@ fn the_walk_checks_its_swing_against_the_capture_point_of_the_velocity_error() {
     };
     let on = WalkSupport::default();
     // Standing still and pushed to the right (away from FL): FL, as the order says.
-    assert_eq!(choice(0.0, on), Leg::FrontLeft);
-    assert_eq!(choice(-0.5, on), Leg::FrontLeft);
+    assert_eq!(choice(0.0, on, still), Leg::FrontLeft);
+    assert_eq!(choice(-0.5, on, still), Leg::FrontLeft);
     // Pushed left at 0.5 m/s: the capture point, √(0.31/9.81)·0.5 = 8.9 cm left of the trunk,
     // lies ≈ 7 cm outside the FR–RR–RL triangle, so FL waits and RR (FR–FL–RL holds it) swings.
-    assert_eq!(choice(0.5, on), Leg::RearRight);
-    // The paper's walk lifts FL regardless.
-    assert_eq!(choice(0.5, WalkSupport::OFF), Leg::FrontLeft);
+    assert_eq!(choice(0.5, on, still), Leg::RearRight);
+    // The paper's walk lifts FL regardless, and so does the walk commanded 0.6 m/s or faster
+    // (the reference has not moved yet at the first step: the same capture point).
+    assert_eq!(choice(0.5, WalkSupport::OFF, still), Leg::FrontLeft);
+    let fast = VelocityCommand {
+        vx_mps: 0.6,
+        ..Default::default()
+    };
+    assert_eq!(choice(0.5, on, fast), Leg::FrontLeft);
 }
 
 #[test]
