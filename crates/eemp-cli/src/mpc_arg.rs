@@ -24,6 +24,11 @@ pub struct MpcArgs {
     /// else 0.3; the MPC's coefficient or above: no cautious start).
     #[arg(long)]
     pub initial_friction: Option<f64>,
+    /// With slip handling: the floor of its coefficient, which slips never take it below
+    /// (`slip.min_friction`, 0.05–2; default: the gait's, 0.15 for the trot and the free gait,
+    /// 0.2 for the walk; the walk's --slow-below-friction, 0.205, must stay above it).
+    #[arg(long)]
+    pub min_friction: Option<f64>,
     /// With slip handling: after a slip, feet that hold raise the coefficient to at most this
     /// factor × the coefficient at that slip (`slip.hold_cap_after_slip`; default 0.95; 0: no cap).
     #[arg(long)]

@@ -49,6 +49,10 @@ pub struct MethodConfig {
     /// file's, else `slip::CAUTIOUS_START`).
     #[serde(default)]
     pub initial_friction: Option<f64>,
+    /// EEMP with slip handling: the coefficient's floor (`slip.min_friction`; absent: the
+    /// gait's, 0.15 for the trot and the free gait, 0.2 for the walk).
+    #[serde(default)]
+    pub min_friction: Option<f64>,
     /// EEMP with slip handling: the cap on raises after a slip (`slip.hold_cap_after_slip`;
     /// absent: its default; 0: off).
     #[serde(default)]
@@ -115,9 +119,10 @@ impl MethodConfig {
     /// The controller settings of its own only an EEMP method may have (besides
     /// `adapt_friction`), each with whether it is set: a policy refuses them, and the table
     /// EEMP-RL is measured against has none.
-    pub fn eemp_controller_settings(&self) -> [(bool, &'static str); 11] {
+    pub fn eemp_controller_settings(&self) -> [(bool, &'static str); 12] {
         [
             (self.initial_friction.is_some(), "initial_friction"),
+            (self.min_friction.is_some(), "min_friction"),
             (self.hold_cap_after_slip.is_some(), "hold_cap_after_slip"),
             (self.hold_raise_fraction.is_some(), "hold_raise_fraction"),
             (self.slip_max_speed_mps.is_some(), "slip_max_speed_mps"),
@@ -185,6 +190,7 @@ impl MethodConfig {
                 }));
             d.adapt_friction = self.adapt_friction;
             d.initial_friction = self.initial_friction;
+            d.min_friction = self.min_friction;
             d.hold_cap_after_slip = self.hold_cap_after_slip;
             d.hold_raise_fraction = self.hold_raise_fraction;
             d.slip_max_speed_mps = self.slip_max_speed_mps;

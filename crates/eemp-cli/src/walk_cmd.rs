@@ -7,7 +7,7 @@ use eemp_rl::run::WalkDescription;
 use std::path::PathBuf;
 
 /// The options a run file replaces (clap's argument ids, the fields' names).
-pub const RUN_FILE_REPLACES: [&str; 46] = [
+pub const RUN_FILE_REPLACES: [&str; 47] = [
     "controller",
     "policy",
     "estimator",
@@ -43,6 +43,7 @@ pub const RUN_FILE_REPLACES: [&str; 46] = [
     "no_adapt_friction",
     "adapt_friction",
     "initial_friction",
+    "min_friction",
     "hold_cap_after_slip",
     "hold_raise_fraction",
     "slip_max_speed",
@@ -170,6 +171,7 @@ impl WalkArgs {
             mpc_period_s: self.mpc.mpc_period,
             adapt_friction: self.mpc.adapt_friction(),
             initial_friction: self.mpc.initial_friction,
+            min_friction: self.mpc.min_friction,
             hold_cap_after_slip: self.mpc.hold_cap_after_slip,
             hold_raise_fraction: self.mpc.hold_raise_fraction,
             slip_max_speed_mps: self.mpc.slip_max_speed,

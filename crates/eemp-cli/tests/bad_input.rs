@@ -58,7 +58,7 @@ fn bad_walk_and_stand_input_exits_2_names_the_value_and_writes_nothing() {
         malformed.to_str().unwrap(),
     );
     // (arguments, what the message must contain)
-    let cases: [(&[&str], &[&str]); 15] = [
+    let cases: [(&[&str], &[&str]); 17] = [
         (
             &["walk", "--gait", "gallop"],
             &["gallop", "trot, walk, free"],
@@ -101,6 +101,19 @@ fn bad_walk_and_stand_input_exits_2_names_the_value_and_writes_nothing() {
         (
             &["walk", "--gait", "walk", "--slow-speed", "-0.3"],
             &["slip.slow_speed_mps", "-0.3", "[0, 10]"],
+        ),
+        (
+            &["walk", "--min-friction", "0"],
+            &["slip.min_friction", "0", "[0.05, 2]"],
+        ),
+        (
+            // The walk's cap comes on below 0.205: a floor at or above it leaves it no room.
+            &["walk", "--gait", "walk", "--min-friction", "0.21"],
+            &[
+                "slip.slow_below_friction",
+                "0.205",
+                "slip.min_friction = 0.21",
+            ],
         ),
         (
             // The cap lifts at 0.25: a threshold above it leaves no room to lift.

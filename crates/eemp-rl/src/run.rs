@@ -217,6 +217,8 @@ pub struct WalkDescription {
     pub adapt_friction: Option<bool>,
     /// With slip handling: the coefficient it starts from (`slip.initial_friction`).
     pub initial_friction: Option<f64>,
+    /// With slip handling: the coefficient's floor (`slip.min_friction`; default: the gait's).
+    pub min_friction: Option<f64>,
     /// With slip handling: the cap on raises after a slip (`slip.hold_cap_after_slip`; 0: off).
     pub hold_cap_after_slip: Option<f64>,
     /// With slip handling: the fraction of the asked ratio a hold raises the coefficient to
@@ -282,6 +284,7 @@ impl Default for WalkDescription {
             mpc_period_s: eemp_core::controller::ControllerConfig::default().mpc_period_s,
             adapt_friction: None,
             initial_friction: None,
+            min_friction: None,
             hold_cap_after_slip: None,
             hold_raise_fraction: None,
             slip_max_speed_mps: None,
@@ -324,6 +327,7 @@ impl WalkDescription {
     fn slip_settings_set(&self) -> Vec<&'static str> {
         set_flags([
             ("--initial-friction", self.initial_friction.is_some()),
+            ("--min-friction", self.min_friction.is_some()),
             ("--hold-cap-after-slip", self.hold_cap_after_slip.is_some()),
             ("--hold-raise-fraction", self.hold_raise_fraction.is_some()),
             ("--slip-max-speed", self.slip_max_speed_mps.is_some()),
@@ -605,6 +609,9 @@ impl WalkDescription {
         }
         if let Some(mu) = self.initial_friction {
             spec.controller.slip.initial_friction = Some(mu);
+        }
+        if let Some(mu) = self.min_friction {
+            spec.controller.slip.min_friction = mu;
         }
         if let Some(cap) = self.hold_cap_after_slip {
             spec.controller.slip.hold_cap_after_slip = cap;
