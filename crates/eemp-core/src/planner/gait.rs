@@ -99,7 +99,7 @@ impl Default for FreePairing {
 /// lifted foot's corner tips it over that diagonal: the MPC cannot brake while the centre of
 /// pressure it needs lies outside the triangle. Traced under a 0.5 m/s side push on a 0.3 floor
 /// (walk, 0.1 m/s, filter): the front leg on the pushed side lifted 0.03–0.06 s after the push,
-/// the trunk kept its 0.45–0.5 m/s sideways for the whole swing and gained 0.35 m/s forwards,
+/// the trunk kept its 0.40–0.50 m/s sideways for the whole swing and gained 0.35 m/s forwards,
 /// and it ran out of its feet within the next steps. So a leg is passed over while the capture
 /// point of the velocity error (the trunk plus eq. (6)'s feedback term √(X_z/g)·(V_cur −
 /// V_des), unbounded) lies more than `-margin_m` outside the other three feet's triangle, and
