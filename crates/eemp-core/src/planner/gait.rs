@@ -522,27 +522,29 @@ mod tests {
 
     #[test]
     fn walk_support_margins_outside_their_range_are_refused_by_name() {
-        for bad in [0.01, -0.3, f64::NAN] {
-            let err = WalkSupport {
-                margin_m: bad,
-                ..WalkSupport::default()
-            }
-            .validate("planner.walk_support")
-            .unwrap_err()
-            .to_string();
-            assert!(err.contains("planner.walk_support.margin_m"), "{err}");
-            assert!(bad.is_nan() || err.contains("[-0.2, 0]"), "{err}");
-        }
-        for bad in [-0.1, 11.0] {
-            let err = WalkSupport {
-                max_speed_mps: bad,
-                ..WalkSupport::default()
-            }
-            .validate("planner.walk_support")
-            .unwrap_err()
-            .to_string();
-            assert!(err.contains("planner.walk_support.max_speed_mps"), "{err}");
-            assert!(err.contains("[0, 10]"), "{err}");
+        let d = WalkSupport::default();
+        let margin = |m| WalkSupport { margin_m: m, ..d };
+        let speed = |v| WalkSupport {
+            max_speed_mps: v,
+            ..d
+        };
+        // (the config, the key named, the range named; a NaN names no range)
+        for (bad, key, range) in [
+            (margin(0.01), "margin_m", "[-0.2, 0]"),
+            (margin(-0.3), "margin_m", "[-0.2, 0]"),
+            (margin(f64::NAN), "margin_m", ""),
+            (speed(-0.1), "max_speed_mps", "[0, 10]"),
+            (speed(11.0), "max_speed_mps", "[0, 10]"),
+        ] {
+            let err = bad
+                .validate("planner.walk_support")
+                .unwrap_err()
+                .to_string();
+            assert!(
+                err.contains(&format!("planner.walk_support.{key}")),
+                "{err}"
+            );
+            assert!(err.contains(range), "{err}");
         }
         assert!(WalkSupport::default().validate("p").is_ok());
     }

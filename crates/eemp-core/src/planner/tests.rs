@@ -35,13 +35,17 @@ fn standing(kin: &LegKinematics, x: f64) -> (RobotState, LegMap<Vector3<f64>>) {
 }
 
 fn planner(gait: Gait) -> EemPlanner {
-    let robot = RobotConfig::a1();
+    planner_with(PlannerConfig {
+        gait,
+        ..Default::default()
+    })
+}
+
+/// The A1's planner: foot radius 2 cm, a 10-step horizon of 25 ms.
+fn planner_with(config: PlannerConfig) -> EemPlanner {
     EemPlanner::new(
-        PlannerConfig {
-            gait,
-            ..Default::default()
-        },
-        LegKinematics::new(&robot),
+        config,
+        LegKinematics::new(&RobotConfig::a1()),
         0.02,
         10,
         0.025,
@@ -153,18 +157,11 @@ fn the_walk_checks_its_swing_against_the_capture_point_of_the_velocity_error() {
     let still = VelocityCommand::default();
     // After RL the walk's order lifts FL; FL is 8 cm behind its hip (outside, so a swing starts).
     let choice = |vy_mps: f64, support: WalkSupport, cmd: VelocityCommand| {
-        let mut p = EemPlanner::new(
-            PlannerConfig {
-                gait: Gait::Walk,
-                walk_support: support,
-                ..Default::default()
-            },
-            kin.clone(),
-            0.02,
-            10,
-            0.025,
-        )
-        .unwrap();
+        let mut p = planner_with(PlannerConfig {
+            gait: Gait::Walk,
+            walk_support: support,
+            ..Default::default()
+        });
         p.previous_legs = vec![Leg::RearLeft];
         let (mut state, mut feet) = standing(&kin, 0.0);
         state.body.v_world = Vector3::new(0.0, vy_mps, 0.0);
@@ -318,18 +315,11 @@ fn the_first_step_on_command_starts_one_trot_pair_at_once_then_the_ellipses_rule
             .stance,
         LegMap::splat(true)
     );
-    let mut on = EemPlanner::new(
-        PlannerConfig {
-            gait: Gait::Trot,
-            first_step_on_command: true,
-            ..Default::default()
-        },
-        kin.clone(),
-        0.02,
-        10,
-        0.025,
-    )
-    .unwrap();
+    let mut on = planner_with(PlannerConfig {
+        gait: Gait::Trot,
+        first_step_on_command: true,
+        ..Default::default()
+    });
     // Standing still: no step, whatever the flag.
     let rest = VelocityCommand::default();
     let at_rest = on.plan(0.0, &state, &feet, &rest, &params, NOMINAL_MU);

@@ -60,6 +60,12 @@ mod tests {
         );
         assert!((p.x - 0.080_276_5).abs() < 1e-6, "{p:?}");
         assert!((p.y + 0.005_276_5).abs() < 1e-6, "{p:?}");
+        // Its feedback term alone (the capture point of the velocity error): (0.1, −0.1)·k.
+        let f = feedback(&Vector2::new(0.5, 0.1), &Vector2::new(0.6, 0.0), 0.31);
+        assert!(
+            (f - Vector2::new(0.1 * k, -0.1 * k)).norm() < 1e-12,
+            "{f:?}"
+        );
         // Algorithm 1's reading (factor 1) adds another V_des·ΔT/2.
         let q = progress(
             &Vector2::new(0.5, 0.1),
