@@ -416,21 +416,40 @@ impl WalkDescription {
                 self.controller
             ));
         }
-        let walk_tuning =
-            self.walk_support_margin_m.is_some() || self.walk_support_max_speed_mps.is_some();
-        if (walk_tuning || self.walk_support_check.is_some()) && (!is_eemp || gait != Gait::Walk) {
+        // The walk's support-check options the run sets, named as given.
+        let walk_tuning = set_flags([
+            (
+                "--walk-support-margin",
+                self.walk_support_margin_m.is_some(),
+            ),
+            (
+                "--walk-support-max-speed",
+                self.walk_support_max_speed_mps.is_some(),
+            ),
+        ]);
+        let walk_switch = self.walk_support_check.map(|on| match on {
+            true => "walk_support.check = true",
+            false => "--no-walk-support",
+        });
+        if (!walk_tuning.is_empty() || walk_switch.is_some()) && (!is_eemp || gait != Gait::Walk) {
             return Err(format!(
-                "--walk-support-margin, --walk-support-max-speed and --no-walk-support are for \
-                 --controller eemp --gait walk, not --controller {} --gait {gait}",
+                "{}: the walk's support-check options are for --controller eemp --gait walk, \
+                 not --controller {} --gait {gait}",
+                walk_tuning
+                    .iter()
+                    .copied()
+                    .chain(walk_switch)
+                    .collect::<Vec<_>>()
+                    .join(", "),
                 self.controller
             ));
         }
-        if self.walk_support_check == Some(false) && walk_tuning {
-            return Err(
-                "--walk-support-margin, --walk-support-max-speed: the walk's support check is \
-                 off (--no-walk-support or walk_support.check = false): drop one or the other"
-                    .into(),
-            );
+        if self.walk_support_check == Some(false) && !walk_tuning.is_empty() {
+            return Err(format!(
+                "{}: the walk's support check is off (--no-walk-support or walk_support.check = \
+                 false): drop one or the other",
+                walk_tuning.join(", ")
+            ));
         }
         let planner_options = self.eemp_options_set();
         if !is_eemp && !planner_options.is_empty() {

@@ -129,9 +129,8 @@ pub const WALK_SUPPORT_MARGIN_RANGE: [f64; 2] = [-0.2, 0.0];
 /// [`WalkSupport::margin_m`] by default, m (see [`WalkSupport::default`]).
 pub const DEFAULT_WALK_SUPPORT_MARGIN_M: f64 = -0.05;
 
-/// [`WalkSupport::max_speed_mps`] by default, m/s (the walk's slip handling's too,
-/// `slip::WALK_MAX_SPEED_MPS`).
-pub const DEFAULT_WALK_SUPPORT_MAX_SPEED_MPS: f64 = 0.6;
+/// [`WalkSupport::max_speed_mps`] by default, m/s: where the walk's slip handling stops too.
+pub const DEFAULT_WALK_SUPPORT_MAX_SPEED_MPS: f64 = crate::slip::WALK_MAX_SPEED_MPS;
 
 /// Allowed [`WalkSupport::max_speed_mps`], m/s.
 pub const WALK_SUPPORT_MAX_SPEED_RANGE: [f64; 2] = [0.0, 10.0];
