@@ -24,6 +24,11 @@ pub struct StateSourceArgs {
     /// least this large, m/s (`KfConfig::velocity_jump_mps`, default 0.15; 0: off).
     #[arg(long)]
     pub kf_velocity_jump: Option<f64>,
+    /// With --estimator kf: take a jump that a group of the stance legs agree on when every
+    /// other one reads at least this fraction of it (a foot dragged along by a push;
+    /// `KfConfig::velocity_jump_dragged_fraction`, default 0.15; 0: off).
+    #[arg(long)]
+    pub kf_dragged_fraction: Option<f64>,
     /// With --estimator kf: fade out a stance leg whose velocity disagrees with the estimate and
     /// with every other stance leg by more than this, m/s (`KfConfig::leg_outlier_mps`, default
     /// 0.15; 0: off).
@@ -49,6 +54,7 @@ impl StateSourceArgs {
     pub fn kf_options(&self) -> KfOptions {
         KfOptions {
             velocity_jump_mps: self.kf_velocity_jump,
+            velocity_jump_dragged_fraction: self.kf_dragged_fraction,
             leg_outlier_mps: self.kf_leg_outlier,
         }
     }

@@ -88,6 +88,10 @@ pub struct MethodConfig {
     /// absent: the filter's default).
     #[serde(default)]
     pub kf_velocity_jump_mps: Option<f64>,
+    /// On the filter: the share of a jump that marks a leg dragged along by a push
+    /// (`KfConfig::velocity_jump_dragged_fraction`; 0: off; absent: the filter's default).
+    #[serde(default)]
+    pub kf_dragged_fraction: Option<f64>,
     /// On the filter: its leg-outlier threshold, m/s (`KfConfig::leg_outlier_mps`; 0: off;
     /// absent: the filter's default).
     #[serde(default)]
@@ -150,6 +154,7 @@ impl MethodConfig {
     fn kf_options(&self) -> KfOptions {
         KfOptions {
             velocity_jump_mps: self.kf_velocity_jump_mps,
+            velocity_jump_dragged_fraction: self.kf_dragged_fraction,
             leg_outlier_mps: self.kf_leg_outlier_mps,
         }
     }
@@ -225,6 +230,7 @@ impl MethodConfig {
             &self.kf_options(),
             [
                 &format!("method '{}': kf_velocity_jump_mps", self.name),
+                &format!("method '{}': kf_dragged_fraction", self.name),
                 &format!("method '{}': kf_leg_outlier_mps", self.name),
             ],
         )
@@ -481,6 +487,7 @@ impl SuiteConfig {
                         // comparison is not like for like.
                         let kf = [
                             (m.kf_velocity_jump_mps.is_some(), "kf_velocity_jump_mps"),
+                            (m.kf_dragged_fraction.is_some(), "kf_dragged_fraction"),
                             (m.kf_leg_outlier_mps.is_some(), "kf_leg_outlier_mps"),
                         ];
                         if let Some((_, key)) = m

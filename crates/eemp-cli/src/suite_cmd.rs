@@ -818,6 +818,7 @@ fn rl_against_table<'a>(
             && m.adapt_friction == slip
             && m.eemp_controller_settings().iter().all(|(set, _)| !set)
             && m.kf_velocity_jump_mps.is_none()
+            && m.kf_dragged_fraction.is_none()
             && m.kf_leg_outlier_mps.is_none()
     };
     let mut lines = Vec::new();

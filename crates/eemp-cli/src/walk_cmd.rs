@@ -7,13 +7,14 @@ use eemp_rl::run::WalkDescription;
 use std::path::PathBuf;
 
 /// The options a run file replaces (clap's argument ids, the fields' names).
-pub const RUN_FILE_REPLACES: [&str; 47] = [
+pub const RUN_FILE_REPLACES: [&str; 48] = [
     "controller",
     "policy",
     "estimator",
     "ideal_sensors",
     "seed",
     "kf_velocity_jump",
+    "kf_dragged_fraction",
     "kf_leg_outlier",
     "gait",
     "speed",

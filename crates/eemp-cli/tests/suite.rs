@@ -37,6 +37,7 @@ fn config() -> SuiteConfig {
                 ellipse_friction_factor: None,
                 touchdown_friction_factor: None,
                 kf_velocity_jump_mps: None,
+                kf_dragged_fraction: None,
                 kf_leg_outlier_mps: None,
                 free_pairing: None,
                 walk_support: None,
@@ -61,6 +62,7 @@ fn config() -> SuiteConfig {
                 ellipse_friction_factor: None,
                 touchdown_friction_factor: None,
                 kf_velocity_jump_mps: None,
+                kf_dragged_fraction: None,
                 kf_leg_outlier_mps: None,
                 free_pairing: None,
                 walk_support: None,
@@ -222,6 +224,13 @@ fn bad_suite_configs_are_refused_naming_the_value() {
     let e = c.validate().unwrap_err();
     assert!(
         e.contains("kf_velocity_jump_mps") && e.contains("-0.1"),
+        "{e}"
+    );
+    let mut c = config();
+    c.methods[0].kf_dragged_fraction = Some(1.5);
+    let e = c.validate().unwrap_err();
+    assert!(
+        e.contains("kf_dragged_fraction") && e.contains("1.5"),
         "{e}"
     );
     let mut c = config();

@@ -29,6 +29,14 @@ pub struct ImuReading {
     pub accel_body: Vector3<f64>,
 }
 
+/// How soon after the legs last agreed with the estimate a group's jump may be taken, and how
+/// long after a jump none is, s ([`KfConfig::velocity_jump_dragged_fraction`]): a push's
+/// readings part within tens of ms from legs that agreed (the pushed walk's held pair was
+/// trusted 31 ms after it), while on a floor where feet slide all the time (the Go1's walk at
+/// 0.5 m/s on friction 0.2) the legs scatter for longer and jumps follow one another, and a
+/// group of sliding feet was taken for the held ones.
+pub const PUSH_WINDOW_S: f64 = 0.06;
+
 /// Time over which a leg's trust ramps from 0 to 1 after it enters stance, s (Cheetah's 0.2
 /// of a 0.15–0.25 s stance).
 pub const TRUST_RAMP_S: f64 = 0.04;
@@ -125,6 +133,19 @@ pub struct KfConfig {
     /// How closely the legs must agree for a jump: each within this fraction of the jump from
     /// their mean (a single slipping foot disagrees with the others and is left to the filter).
     pub velocity_jump_agreement: f64,
+    /// A push's jump that only some legs read. After a push the IMU did not sense, a held foot
+    /// reads the trunk's new velocity, and a foot that slides with the trunk reads only part of
+    /// the change (it moved with the trunk at first and friction brakes it slowly). Within
+    /// [`PUSH_WINDOW_S`] of an update whose planted legs all agreed with the estimate, and not
+    /// after a jump, when two or more fully trusted legs agree on a horizontal jump of at least
+    /// `velocity_jump_mps` and every other one reads, along it, between this fraction of it and
+    /// `1 − velocity_jump_agreement` of it, the group's jump is taken and the others are not
+    /// read until they agree with the estimate again or their foot lifts. (A walk at 0.1 m/s
+    /// pushed 0.49 m/s sideways on a 0.3 floor: the two left feet held and read 0.41–0.43 m/s,
+    /// the right ones slid and read 0.02–0.25, and the filter followed them to 0.24 m/s against
+    /// 0.43 when a held foot lifted; the walk fell.) Feet that slip while the others hold read
+    /// none of the change, so that case is left to the leg gate. 0 turns it off.
+    pub velocity_jump_dragged_fraction: f64,
     /// A planned stance leg whose velocity reading disagrees by more than this, m/s, both with
     /// the estimate and with every other stance leg (trust ≥ ½) is a foot off the ground or
     /// sliding: its trust fades linearly to 0 at twice this disagreement. (A stance leg's
@@ -147,6 +168,7 @@ impl Default for KfConfig {
             suspect_factor: 100.0,
             velocity_jump_mps: 0.15,
             velocity_jump_agreement: 0.5,
+            velocity_jump_dragged_fraction: 0.15,
             leg_outlier_mps: 0.15,
         }
     }
@@ -188,8 +210,21 @@ impl KfConfig {
             0.0,
             1.0,
         )?;
+        check_range(
+            "kf.velocity_jump_dragged_fraction",
+            self.velocity_jump_dragged_fraction,
+            0.0,
+            1.0,
+        )?;
         check_range("kf.leg_outlier_mps", self.leg_outlier_mps, 0.0, 10.0)
     }
+}
+
+/// A velocity jump the legs read and the IMU did not: the change, and which legs read it (the
+/// others are not read in the update that takes it).
+struct Jump {
+    dv: Vector3<f64>,
+    read_by: LegMap<bool>,
 }
 
 /// One scalar measurement: x[plus] − x[minus] = y with variance `var`.
@@ -214,6 +249,13 @@ pub struct LinearKf {
     x: State,
     p: Cov,
     last_time_s: Option<f64>,
+    /// Legs found dragged along by a push (see [`KfConfig::velocity_jump_dragged_fraction`]):
+    /// not read until they agree with the estimate again or their foot lifts.
+    dragged: LegMap<bool>,
+    /// The last update whose planted legs all agreed with the estimate, and the last that took a
+    /// jump, s: a group's jump is looked for only shortly after the one and not after the other.
+    last_calm_s: Option<f64>,
+    last_jump_s: Option<f64>,
 }
 
 impl LinearKf {
@@ -230,6 +272,9 @@ impl LinearKf {
             x: State::zeros(),
             p: Cov::identity() * 100.0,
             last_time_s: None,
+            dragged: LegMap::splat(false),
+            last_calm_s: None,
+            last_jump_s: None,
         };
         kf.reset(start);
         Ok(kf)
@@ -248,6 +293,9 @@ impl LinearKf {
         }
         self.p = Cov::identity() * 1e-4;
         self.last_time_s = Some(s.time_s);
+        self.dragged = LegMap::splat(false);
+        self.last_calm_s = None;
+        self.last_jump_s = None;
     }
 
     pub fn position_world(&self) -> Vector3<f64> {
@@ -296,7 +344,31 @@ impl LinearKf {
             self.p[(3 + i, 3 + i)] += dt * 9.81 / 20.0 * c.imu_process_noise_velocity;
         }
         let v_legs = self.leg_velocities_world(input, &omega_world);
-        let trust = self.consistent_trust(&input.contact_trust, &v_legs);
+        let mut trust = self.consistent_trust(&input.contact_trust, &v_legs);
+        let v_hat = self.velocity_world();
+        for leg in Leg::ALL {
+            // A dragged foot has stopped sliding when it reads the trunk again.
+            let agrees = (v_legs[leg] - v_hat).norm() < c.velocity_jump_mps;
+            if input.contact_trust[leg] <= 0.0 || agrees {
+                self.dragged[leg] = false;
+            }
+            if self.dragged[leg] {
+                trust[leg] = 0.0;
+            }
+        }
+        let t = input.time_s;
+        // Calm: every leg the plan has fully in stance reads the estimate (the gate's fading
+        // does not count, or a leg reading a push would make the rest look calm).
+        let planted = || {
+            Leg::ALL
+                .into_iter()
+                .filter(|&l| input.contact_trust[l] >= 1.0)
+        };
+        if planted().all(|l| (v_legs[l] - v_hat).norm() < c.velocity_jump_mps) {
+            self.last_calm_s = Some(t);
+        }
+        let recent = |at: Option<f64>| at.is_some_and(|at| t - at <= PUSH_WINDOW_S);
+        let after_a_push = recent(self.last_calm_s) && !recent(self.last_jump_s);
         for leg in Leg::ALL {
             let suspect = 1.0 + (1.0 - trust[leg].clamp(0.0, 1.0)) * c.suspect_factor;
             for i in 0..3 {
@@ -304,9 +376,16 @@ impl LinearKf {
                 self.p[(k, k)] += dt * c.foot_process_noise_position * suspect;
             }
         }
-        if let Some(jump) = self.unsensed_velocity_jump(&trust, &v_legs) {
+        if let Some(jump) = self.unsensed_velocity_jump(&trust, &v_legs, after_a_push) {
+            self.last_jump_s = Some(t);
             for i in 0..3 {
-                self.p[(3 + i, 3 + i)] += jump[i] * jump[i];
+                self.p[(3 + i, 3 + i)] += jump.dv[i] * jump.dv[i];
+            }
+            for leg in Leg::ALL {
+                if !jump.read_by[leg] && input.contact_trust[leg] > 0.0 {
+                    trust[leg] = 0.0;
+                    self.dragged[leg] = true;
+                }
             }
         }
         let rows = self.measurements(input, &trust, &v_legs);
@@ -382,30 +461,79 @@ impl LinearKf {
     }
 
     /// The legs' common velocity minus the estimate, when the fully trusted legs agree on one
-    /// far from it (see [`KfConfig::velocity_jump_mps`]).
+    /// far from it (see [`KfConfig::velocity_jump_mps`]), or a group of them does while the
+    /// others are dragged along (see [`KfConfig::velocity_jump_dragged_fraction`]).
     fn unsensed_velocity_jump(
         &self,
         trust: &LegMap<f64>,
         v_legs: &LegMap<Vector3<f64>>,
-    ) -> Option<Vector3<f64>> {
+        groups_allowed: bool,
+    ) -> Option<Jump> {
         let c = &self.config;
         if c.velocity_jump_mps <= 0.0 {
             return None;
         }
-        let trusted = || {
-            Leg::ALL
-                .into_iter()
-                .filter(|&leg| trust[leg] >= 1.0)
-                .map(|leg| v_legs[leg])
-        };
-        let n = trusted().count();
-        if n < 2 {
+        let trusted_mask = Leg::ALL
+            .into_iter()
+            .filter(|&leg| trust[leg] >= 1.0)
+            .fold(0u8, |m, leg| m | 1 << leg.index());
+        if trusted_mask.count_ones() < 2 {
             return None;
         }
-        let mean = trusted().sum::<Vector3<f64>>() / n as f64;
-        let jump = mean - self.velocity_world();
-        let agree = trusted().all(|v| (v - mean).norm() <= c.velocity_jump_agreement * jump.norm());
-        (jump.norm() >= c.velocity_jump_mps && agree).then_some(jump)
+        let v_hat = self.velocity_world();
+        let legs_of = |mask: u8| {
+            Leg::ALL
+                .into_iter()
+                .filter(move |leg| mask & (1 << leg.index()) != 0)
+        };
+        // The group that agrees on a jump: all the trusted legs, else (largest first) a subset
+        // of two or more whose jump every other trusted leg read part of.
+        let mut groups: Vec<u8> = (1u8..16)
+            .filter(|&mask| mask & !trusted_mask == 0 && mask.count_ones() >= 2)
+            .collect();
+        groups.sort_by_key(|mask| std::cmp::Reverse(mask.count_ones()));
+        for mask in groups {
+            let whole = mask == trusted_mask;
+            if !whole && (c.velocity_jump_dragged_fraction <= 0.0 || !groups_allowed) {
+                break;
+            }
+            // A foot slides over the ground, not into it: a group's jump is horizontal.
+            let seen = |v: Vector3<f64>| match whole {
+                true => v,
+                false => Vector3::new(v.x, v.y, 0.0),
+            };
+            let members = || legs_of(mask).map(|l| seen(v_legs[l]));
+            let mean = members().sum::<Vector3<f64>>() / mask.count_ones() as f64;
+            let dv = mean - seen(v_hat);
+            let size = dv.norm();
+            if size < c.velocity_jump_mps
+                || !members().all(|v| (v - mean).norm() <= c.velocity_jump_agreement * size)
+            {
+                continue;
+            }
+            if whole {
+                return Some(Jump {
+                    dv,
+                    read_by: LegMap::splat(true),
+                });
+            }
+            let direction = dv / size;
+            let dragged = |v: Vector3<f64>| {
+                let off = seen(v) - seen(v_hat);
+                let along = off.dot(&direction);
+                let across = (off - direction * along).norm();
+                along >= c.velocity_jump_dragged_fraction * size
+                    && along <= (1.0 - c.velocity_jump_agreement) * size
+                    && across <= c.velocity_jump_agreement * size
+            };
+            if legs_of(trusted_mask & !mask).all(|l| dragged(v_legs[l])) {
+                return Some(Jump {
+                    dv,
+                    read_by: LegMap::from_fn(|l| mask & (1 << l.index()) != 0),
+                });
+            }
+        }
+        None
     }
 
     /// The 28 scalar measurements: (state index with +1, state index with −1, value, variance).
@@ -690,6 +818,33 @@ mod tests {
         steps_after: usize,
         contact_trust: LegMap<f64>,
     ) -> Vector3<f64> {
+        let read = LegMap::from_fn(|leg| match slipping {
+            true if leg != Leg::FrontRight => 0.0,
+            _ => 1.0,
+        });
+        after_a_jump_read(
+            config,
+            v0,
+            v1,
+            LegMap::splat(0.0),
+            read,
+            steps_after,
+            contact_trust,
+        )
+    }
+
+    /// The general case: each leg reads `v0 + before[leg] · (v1 − v0)` before the jump and
+    /// `v0 + read[leg] · (v1 − v0)` after it (1: its foot holds and reads the whole jump; 0: it
+    /// reads none of it).
+    fn after_a_jump_read(
+        config: KfConfig,
+        v0: Vector3<f64>,
+        v1: Vector3<f64>,
+        before: LegMap<f64>,
+        read: LegMap<f64>,
+        steps_after: usize,
+        contact_trust: LegMap<f64>,
+    ) -> Vector3<f64> {
         let robot = RobotConfig::a1();
         let kin = LegKinematics::new(&robot);
         let feet = LegMap::from_fn(|leg| {
@@ -702,17 +857,17 @@ mod tests {
         let dt = 0.002;
         for k in 1..=100 + steps_after {
             let t = k as f64 * dt;
-            let mut joints = gliding(v0, t, &kin, &feet).joints;
-            if k > 100 {
-                // The trunk goes on from where it was: feet seen from p0 + v0·t_j + v1·(t − t_j).
-                let t_j = 100.0 * dt;
-                let feet_seen = feet.map(|_, f| f - (v0 - v1) * t_j);
-                let jumped = gliding(v1, t, &kin, &feet_seen).joints;
-                match slipping {
-                    true => joints[Leg::FrontRight] = jumped[Leg::FrontRight],
-                    false => joints = jumped,
+            let v = |share: f64| v0 + (v1 - v0) * share;
+            let joints = LegMap::from_fn(|leg| {
+                let vb = v(before[leg]);
+                if k <= 100 {
+                    return gliding(vb, t, &kin, &feet).joints[leg];
                 }
-            }
+                // The trunk goes on from where the leg saw it: p0 + v_b·t_j + v_a·(t − t_j).
+                let (t_j, va) = (100.0 * dt, v(read[leg]));
+                let feet_seen = feet.map(|_, f| f - (vb - va) * t_j);
+                gliding(va, t, &kin, &feet_seen).joints[leg]
+            });
             kf.update(&EstimatorInput {
                 time_s: t,
                 imu: ImuReading {
@@ -808,5 +963,43 @@ mod tests {
         let dragged = after_a_jump_on(gate_off, v0, v_slip, true, 100, pair);
         assert!((gated - v0).norm() < 0.02, "gated {gated:?}");
         assert!((dragged - v0).norm() > 0.1, "dragged {dragged:?}");
+    }
+
+    #[test]
+    fn after_a_push_the_held_feet_are_read_and_the_dragged_ones_are_not() {
+        // All four feet down when a push the IMU did not sense moves the trunk 0.45 m/s
+        // sideways: the two left feet hold and read it, the two right ones slide with the trunk
+        // and read 30 % of it (the pushed walk on the 0.3 floor).
+        let (v0, v1) = (Vector3::new(0.1, 0.0, 0.0), Vector3::new(0.1, 0.45, 0.0));
+        let on = KfConfig::default();
+        let off = KfConfig {
+            velocity_jump_dragged_fraction: 0.0,
+            ..KfConfig::default()
+        };
+        let stance = LegMap::splat(1.0);
+        let left_held = LegMap::from_fn(|l| if l.side_sign() > 0.0 { 1.0 } else { 0.3 });
+        let calm = LegMap::splat(0.0);
+        let with = after_a_jump_read(on.clone(), v0, v1, calm, left_held, 10, stance);
+        let without = after_a_jump_read(off.clone(), v0, v1, calm, left_held, 10, stance);
+        assert!((with - v1).norm() < 0.03, "with {with:?}");
+        assert!((without - v1).norm() > 0.1, "without {without:?}");
+        // Two feet slipping while the other two hold: the held ones read none of the change, so
+        // it is no push and the rule stays out of it (the filter as without it).
+        let right_slip = LegMap::from_fn(|l| if l.side_sign() > 0.0 { 0.0 } else { 1.0 });
+        let a = after_a_jump_read(on.clone(), v0, v1, calm, right_slip, 10, stance);
+        let b = after_a_jump_read(off.clone(), v0, v1, calm, right_slip, 10, stance);
+        assert_eq!(a, b);
+        // Feet that read more of the change than the group are not dragged ones either.
+        let beyond = LegMap::from_fn(|l| if l.side_sign() > 0.0 { 1.0 } else { 1.8 });
+        let a = after_a_jump_read(on.clone(), v0, v1, calm, beyond, 10, stance);
+        let b = after_a_jump_read(off.clone(), v0, v1, calm, beyond, 10, stance);
+        assert_eq!(a, b);
+        // Legs that already disagreed (feet sliding all the time: for 0.2 s the right pair
+        // reads 0.36 m/s below the left): a split like a push's afterwards is not taken for one.
+        let scattered = LegMap::from_fn(|l| if l.side_sign() > 0.0 { 0.0 } else { -0.8 });
+        let split = LegMap::from_fn(|l| if l.side_sign() > 0.0 { 1.0 } else { -0.1 });
+        let a = after_a_jump_read(on, v0, v1, scattered, split, 10, stance);
+        let b = after_a_jump_read(off, v0, v1, scattered, split, 10, stance);
+        assert_eq!(a, b);
     }
 }

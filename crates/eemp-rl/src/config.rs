@@ -247,12 +247,14 @@ pub enum TrainEstimator {
 /// trained on it; a policy trained on the filter is evaluated on the same (`eemp walk`, the
 /// suites). The default is the filter of the first policies (jump test and leg-outlier gate
 /// off), so that a policy file written before this setting existed reads as what it was
-/// trained on; `[kf] velocity_jump_mps = 0.15, leg_outlier_mps = 0.15` trains on the
-/// filter's current defaults.
+/// trained on; `[kf] velocity_jump_mps = 0.15, velocity_jump_dragged_fraction = 0.15,
+/// leg_outlier_mps = 0.15` trains on the filter's current defaults.  (The shipped policies were
+/// trained before the dragged-leg rule, so they run without it.)
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct TrainKf {
     pub velocity_jump_mps: f64,
+    pub velocity_jump_dragged_fraction: f64,
     pub leg_outlier_mps: f64,
 }
 
@@ -260,6 +262,7 @@ impl TrainKf {
     /// `kf` with these settings.
     pub fn apply(&self, kf: &mut eemp_core::estimator::KfConfig) {
         kf.velocity_jump_mps = self.velocity_jump_mps;
+        kf.velocity_jump_dragged_fraction = self.velocity_jump_dragged_fraction;
         kf.leg_outlier_mps = self.leg_outlier_mps;
     }
 }

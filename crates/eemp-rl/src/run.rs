@@ -74,7 +74,11 @@ impl Sensing {
         with_kf_options(
             &mut source,
             &self.kf,
-            ["--kf-velocity-jump", "--kf-leg-outlier"],
+            [
+                "--kf-velocity-jump",
+                "--kf-dragged-fraction",
+                "--kf-leg-outlier",
+            ],
         )?;
         Ok(source)
     }
@@ -86,6 +90,7 @@ impl Sensing {
 #[serde(deny_unknown_fields, default)]
 pub struct KfOptions {
     pub velocity_jump_mps: Option<f64>,
+    pub velocity_jump_dragged_fraction: Option<f64>,
     pub leg_outlier_mps: Option<f64>,
 }
 
@@ -94,9 +99,13 @@ pub struct KfOptions {
 pub fn with_kf_options(
     source: &mut StateSource,
     options: &KfOptions,
-    names: [&str; 2],
+    names: [&str; 3],
 ) -> Result<(), String> {
-    let given = [options.velocity_jump_mps, options.leg_outlier_mps];
+    let given = [
+        options.velocity_jump_mps,
+        options.velocity_jump_dragged_fraction,
+        options.leg_outlier_mps,
+    ];
     let Some(kf) = source.kf_config_mut() else {
         return match names.iter().zip(given).find_map(|(n, v)| v.map(|v| (n, v))) {
             Some((name, v)) => Err(format!("{name} {v} needs the kf estimator")),
@@ -105,8 +114,9 @@ pub fn with_kf_options(
     };
     // One option at a time, each checked by the filter's own range and reported under the
     // option's name.
-    let setters: [fn(&mut KfConfig, f64); 2] = [
+    let setters: [fn(&mut KfConfig, f64); 3] = [
         |kf, v| kf.velocity_jump_mps = v,
+        |kf, v| kf.velocity_jump_dragged_fraction = v,
         |kf, v| kf.leg_outlier_mps = v,
     ];
     for ((value, name), set) in given.into_iter().zip(names).zip(setters) {
@@ -150,14 +160,17 @@ pub fn adopt_policy_filter(source: &mut StateSource, policy: &Policy, options: &
         return;
     }
     if let Some(kf) = source.kf_config_mut() {
-        let (jump, outlier) = (kf.velocity_jump_mps, kf.leg_outlier_mps);
+        let given = kf.clone();
         policy.config.kf.apply(kf);
         // What the options set (already applied and validated) stays.
         if options.velocity_jump_mps.is_some() {
-            kf.velocity_jump_mps = jump;
+            kf.velocity_jump_mps = given.velocity_jump_mps;
+        }
+        if options.velocity_jump_dragged_fraction.is_some() {
+            kf.velocity_jump_dragged_fraction = given.velocity_jump_dragged_fraction;
         }
         if options.leg_outlier_mps.is_some() {
-            kf.leg_outlier_mps = outlier;
+            kf.leg_outlier_mps = given.leg_outlier_mps;
         }
     }
 }
