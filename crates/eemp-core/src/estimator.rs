@@ -220,6 +220,11 @@ impl KfConfig {
     }
 }
 
+/// Every group of two or more legs (bit `Leg::index`), largest first.
+const LEG_GROUPS: [u8; 11] = [
+    0b1111, 0b0111, 0b1011, 0b1101, 0b1110, 0b0011, 0b0101, 0b0110, 0b1001, 0b1010, 0b1100,
+];
+
 /// A velocity jump the legs read and the IMU did not: the change, and which legs read it (the
 /// others are not read in the update that takes it).
 struct Jump {
@@ -488,11 +493,10 @@ impl LinearKf {
         };
         // The group that agrees on a jump: all the trusted legs, else (largest first) a subset
         // of two or more whose jump every other trusted leg read part of.
-        let mut groups: Vec<u8> = (1u8..16)
-            .filter(|&mask| mask & !trusted_mask == 0 && mask.count_ones() >= 2)
-            .collect();
-        groups.sort_by_key(|mask| std::cmp::Reverse(mask.count_ones()));
-        for mask in groups {
+        let subsets = LEG_GROUPS
+            .into_iter()
+            .filter(|&mask| mask & !trusted_mask == 0 && mask != trusted_mask);
+        for mask in std::iter::once(trusted_mask).chain(subsets) {
             let whole = mask == trusted_mask;
             if !whole && (c.velocity_jump_dragged_fraction <= 0.0 || !groups_allowed) {
                 break;
