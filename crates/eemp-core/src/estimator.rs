@@ -254,13 +254,72 @@ pub struct LinearKf {
     x: State,
     p: Cov,
     last_time_s: Option<f64>,
-    /// Legs found dragged along by a push (see [`KfConfig::velocity_jump_dragged_fraction`]):
-    /// not read until they agree with the estimate again or their foot lifts.
-    dragged: LegMap<bool>,
+    dragged: DraggedLegs,
+}
+
+/// The dragged-leg rule's memory ([`KfConfig::velocity_jump_dragged_fraction`]).
+#[derive(Clone, Debug, Default)]
+struct DraggedLegs {
+    /// Legs found dragged along by a push: not read until they agree with the estimate again
+    /// or their foot lifts.
+    legs: LegMap<bool>,
     /// The last update whose planted legs all agreed with the estimate, and the last that took a
     /// jump, s: a group's jump is looked for only shortly after the one and not after the other.
     last_calm_s: Option<f64>,
     last_jump_s: Option<f64>,
+}
+
+impl DraggedLegs {
+    /// Before the jump test at `t_s`: releases the legs that read the estimate again (within
+    /// `agree_mps`) or lifted, takes the others out of `trust`, and says whether a group's jump
+    /// may be looked for.
+    fn before_jump_test(
+        &mut self,
+        t_s: f64,
+        planned: &LegMap<f64>,
+        v_legs: &LegMap<Vector3<f64>>,
+        v_hat: &Vector3<f64>,
+        agree_mps: f64,
+        trust: &mut LegMap<f64>,
+    ) -> bool {
+        let agrees = |leg: Leg| (v_legs[leg] - v_hat).norm() < agree_mps;
+        for leg in Leg::ALL {
+            if planned[leg] <= 0.0 || agrees(leg) {
+                self.legs[leg] = false;
+            }
+            if self.legs[leg] {
+                trust[leg] = 0.0;
+            }
+        }
+        // Calm: every leg the plan has fully in stance reads the estimate (the gate's fading
+        // does not count, or a leg reading a push would make the rest look calm).
+        if Leg::ALL
+            .into_iter()
+            .filter(|&l| planned[l] >= 1.0)
+            .all(agrees)
+        {
+            self.last_calm_s = Some(t_s);
+        }
+        let recent = |at: Option<f64>| at.is_some_and(|at| t_s - at <= PUSH_WINDOW_S);
+        recent(self.last_calm_s) && !recent(self.last_jump_s)
+    }
+
+    /// A jump was taken at `t_s`: the planned stance legs that did not read it are dragged.
+    fn jump_taken(
+        &mut self,
+        t_s: f64,
+        jump: &Jump,
+        planned: &LegMap<f64>,
+        trust: &mut LegMap<f64>,
+    ) {
+        self.last_jump_s = Some(t_s);
+        for leg in Leg::ALL {
+            if !jump.read_by[leg] && planned[leg] > 0.0 {
+                trust[leg] = 0.0;
+                self.legs[leg] = true;
+            }
+        }
+    }
 }
 
 impl LinearKf {
@@ -277,9 +336,7 @@ impl LinearKf {
             x: State::zeros(),
             p: Cov::identity() * 100.0,
             last_time_s: None,
-            dragged: LegMap::splat(false),
-            last_calm_s: None,
-            last_jump_s: None,
+            dragged: DraggedLegs::default(),
         };
         kf.reset(start);
         Ok(kf)
@@ -298,9 +355,7 @@ impl LinearKf {
         }
         self.p = Cov::identity() * 1e-4;
         self.last_time_s = Some(s.time_s);
-        self.dragged = LegMap::splat(false);
-        self.last_calm_s = None;
-        self.last_jump_s = None;
+        self.dragged = DraggedLegs::default();
     }
 
     pub fn position_world(&self) -> Vector3<f64> {
@@ -350,30 +405,14 @@ impl LinearKf {
         }
         let v_legs = self.leg_velocities_world(input, &omega_world);
         let mut trust = self.consistent_trust(&input.contact_trust, &v_legs);
-        let v_hat = self.velocity_world();
-        for leg in Leg::ALL {
-            // A dragged foot has stopped sliding when it reads the trunk again.
-            let agrees = (v_legs[leg] - v_hat).norm() < c.velocity_jump_mps;
-            if input.contact_trust[leg] <= 0.0 || agrees {
-                self.dragged[leg] = false;
-            }
-            if self.dragged[leg] {
-                trust[leg] = 0.0;
-            }
-        }
-        let t = input.time_s;
-        // Calm: every leg the plan has fully in stance reads the estimate (the gate's fading
-        // does not count, or a leg reading a push would make the rest look calm).
-        let planted = || {
-            Leg::ALL
-                .into_iter()
-                .filter(|&l| input.contact_trust[l] >= 1.0)
-        };
-        if planted().all(|l| (v_legs[l] - v_hat).norm() < c.velocity_jump_mps) {
-            self.last_calm_s = Some(t);
-        }
-        let recent = |at: Option<f64>| at.is_some_and(|at| t - at <= PUSH_WINDOW_S);
-        let after_a_push = recent(self.last_calm_s) && !recent(self.last_jump_s);
+        let after_a_push = self.dragged.before_jump_test(
+            input.time_s,
+            &input.contact_trust,
+            &v_legs,
+            &self.velocity_world(),
+            c.velocity_jump_mps,
+            &mut trust,
+        );
         for leg in Leg::ALL {
             let suspect = 1.0 + (1.0 - trust[leg].clamp(0.0, 1.0)) * c.suspect_factor;
             for i in 0..3 {
@@ -382,16 +421,11 @@ impl LinearKf {
             }
         }
         if let Some(jump) = self.unsensed_velocity_jump(&trust, &v_legs, after_a_push) {
-            self.last_jump_s = Some(t);
             for i in 0..3 {
                 self.p[(3 + i, 3 + i)] += jump.dv[i] * jump.dv[i];
             }
-            for leg in Leg::ALL {
-                if !jump.read_by[leg] && input.contact_trust[leg] > 0.0 {
-                    trust[leg] = 0.0;
-                    self.dragged[leg] = true;
-                }
-            }
+            self.dragged
+                .jump_taken(input.time_s, &jump, &input.contact_trust, &mut trust);
         }
         let rows = self.measurements(input, &trust, &v_legs);
         self.correct_sequential(&rows);

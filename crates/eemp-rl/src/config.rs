@@ -248,7 +248,7 @@ pub enum TrainEstimator {
 /// suites). The default is the filter of the first policies (jump test and leg-outlier gate
 /// off), so that a policy file written before this setting existed reads as what it was
 /// trained on; `[kf] velocity_jump_mps = 0.15, velocity_jump_dragged_fraction = 0.15,
-/// leg_outlier_mps = 0.15` trains on the filter's current defaults.  (The shipped policies were
+/// leg_outlier_mps = 0.15` trains on the filter's current defaults. (The shipped policies were
 /// trained before the dragged-leg rule, so they run without it.)
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
