@@ -141,9 +141,9 @@ pub struct KfConfig {
     /// `velocity_jump_mps` and every other one reads, along it, between this fraction of it and
     /// `1 − velocity_jump_agreement` of it, the group's jump is taken and the others are not
     /// read until they agree with the estimate again or their foot lifts. (A walk at 0.1 m/s
-    /// pushed 0.49 m/s sideways on a 0.3 floor: the two left feet held and read 0.41–0.43 m/s,
-    /// the right ones slid and read 0.02–0.25, and the filter followed them to 0.24 m/s against
-    /// 0.43 when a held foot lifted; the walk fell.) Feet that slip while the others hold read
+    /// pushed 0.5 m/s sideways on a 0.3 floor: the two left feet held and read 0.38–0.44 m/s,
+    /// the right ones slid and read 0.00–0.25, and the filter followed the mix to 0.24 m/s
+    /// against 0.43 when a held foot lifted; the walk fell.) Feet that slip while the others hold read
     /// none of the change, so that case is left to the leg gate. 0 turns it off.
     pub velocity_jump_dragged_fraction: f64,
     /// A planned stance leg whose velocity reading disagrees by more than this, m/s, both with
@@ -404,12 +404,14 @@ impl LinearKf {
             self.p[(3 + i, 3 + i)] += dt * 9.81 / 20.0 * c.imu_process_noise_velocity;
         }
         let v_legs = self.leg_velocities_world(input, &omega_world);
-        let mut trust = self.consistent_trust(&input.contact_trust, &v_legs);
+        // The predicted velocity, which the gate, the jump test and the rows all compare with.
+        let v_hat = self.velocity_world();
+        let mut trust = self.consistent_trust(&input.contact_trust, &v_legs, &v_hat);
         let after_a_push = self.dragged.before_jump_test(
             input.time_s,
             &input.contact_trust,
             &v_legs,
-            &self.velocity_world(),
+            &v_hat,
             c.velocity_jump_mps,
             &mut trust,
         );
@@ -420,14 +422,14 @@ impl LinearKf {
                 self.p[(k, k)] += dt * c.foot_process_noise_position * suspect;
             }
         }
-        if let Some(jump) = self.unsensed_velocity_jump(&trust, &v_legs, after_a_push) {
+        if let Some(jump) = self.unsensed_velocity_jump(&trust, &v_legs, &v_hat, after_a_push) {
             for i in 0..3 {
                 self.p[(3 + i, 3 + i)] += jump.dv[i] * jump.dv[i];
             }
             self.dragged
                 .jump_taken(input.time_s, &jump, &input.contact_trust, &mut trust);
         }
-        let rows = self.measurements(input, &trust, &v_legs);
+        let rows = self.measurements(input, &trust, &v_legs, &v_hat);
         self.correct_sequential(&rows);
         RobotState {
             time_s: input.time_s,
@@ -471,12 +473,13 @@ impl LinearKf {
         &self,
         planned: &LegMap<f64>,
         v_legs: &LegMap<Vector3<f64>>,
+        v_hat: &Vector3<f64>,
     ) -> LegMap<f64> {
         let gate = self.config.leg_outlier_mps;
         if gate <= 0.0 {
             return *planned;
         }
-        let v_hat = self.velocity_world();
+
         LegMap::from_fn(|leg| {
             let trust = planned[leg];
             if trust <= 0.0 {
@@ -506,12 +509,14 @@ impl LinearKf {
         &self,
         trust: &LegMap<f64>,
         v_legs: &LegMap<Vector3<f64>>,
+        v_hat: &Vector3<f64>,
         groups_allowed: bool,
     ) -> Option<Jump> {
         let c = &self.config;
         if c.velocity_jump_mps <= 0.0 {
             return None;
         }
+        let v_hat = *v_hat;
         let trusted_mask = Leg::ALL
             .into_iter()
             .filter(|&leg| trust[leg] >= 1.0)
@@ -519,22 +524,16 @@ impl LinearKf {
         if trusted_mask.count_ones() < 2 {
             return None;
         }
-        let v_hat = self.velocity_world();
-        let legs_of = |mask: u8| {
-            Leg::ALL
-                .into_iter()
-                .filter(move |leg| mask & (1 << leg.index()) != 0)
-        };
+        let in_group = |mask: u8, leg: Leg| mask & (1 << leg.index()) != 0;
+        let legs_of = |mask: u8| Leg::ALL.into_iter().filter(move |&l| in_group(mask, l));
         // The group that agrees on a jump: all the trusted legs, else (largest first) a subset
         // of two or more whose jump every other trusted leg read part of.
+        let groups_allowed = groups_allowed && c.velocity_jump_dragged_fraction > 0.0;
         let subsets = LEG_GROUPS
             .into_iter()
-            .filter(|&mask| mask & !trusted_mask == 0 && mask != trusted_mask);
+            .filter(|&mask| groups_allowed && mask & !trusted_mask == 0 && mask != trusted_mask);
         for mask in std::iter::once(trusted_mask).chain(subsets) {
             let whole = mask == trusted_mask;
-            if !whole && (c.velocity_jump_dragged_fraction <= 0.0 || !groups_allowed) {
-                break;
-            }
             // A foot slides over the ground, not into it: a group's jump is horizontal.
             let seen = |v: Vector3<f64>| match whole {
                 true => v,
@@ -567,7 +566,7 @@ impl LinearKf {
             if legs_of(trusted_mask & !mask).all(|l| dragged(v_legs[l])) {
                 return Some(Jump {
                     dv,
-                    read_by: LegMap::from_fn(|l| mask & (1 << l.index()) != 0),
+                    read_by: LegMap::from_fn(|l| in_group(mask, l)),
                 });
             }
         }
@@ -580,11 +579,11 @@ impl LinearKf {
         input: &EstimatorInput,
         trust: &LegMap<f64>,
         v_legs: &LegMap<Vector3<f64>>,
+        v_hat: &Vector3<f64>,
     ) -> Vec<Row> {
         let c = &self.config;
         let r = input.imu.r_world_body;
         let mut rows = Vec::with_capacity(28);
-        let v_hat = self.velocity_world();
         for leg in Leg::ALL {
             let i = leg.index();
             let j = &input.joints[leg];

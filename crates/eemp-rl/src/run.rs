@@ -94,6 +94,22 @@ pub struct KfOptions {
     pub leg_outlier_mps: Option<f64>,
 }
 
+/// Sets one filter setting.
+type KfSetter = fn(&mut KfConfig, f64);
+
+impl KfOptions {
+    /// Each option with the filter setting it sets, in the order of the options' names.
+    fn settings(&self) -> [(Option<f64>, KfSetter); 3] {
+        [
+            (self.velocity_jump_mps, |kf, v| kf.velocity_jump_mps = v),
+            (self.velocity_jump_dragged_fraction, |kf, v| {
+                kf.velocity_jump_dragged_fraction = v
+            }),
+            (self.leg_outlier_mps, |kf, v| kf.leg_outlier_mps = v),
+        ]
+    }
+}
+
 /// Applies `options` to the filter (`names` are the options' names, for the errors); refused
 /// out of the filter's range, or for a run on ground truth.
 pub fn with_kf_options(
@@ -101,12 +117,9 @@ pub fn with_kf_options(
     options: &KfOptions,
     names: [&str; 3],
 ) -> Result<(), String> {
-    let given = [
-        options.velocity_jump_mps,
-        options.velocity_jump_dragged_fraction,
-        options.leg_outlier_mps,
-    ];
+    let settings = options.settings();
     let Some(kf) = source.kf_config_mut() else {
+        let given = settings.iter().map(|(v, _)| *v);
         return match names.iter().zip(given).find_map(|(n, v)| v.map(|v| (n, v))) {
             Some((name, v)) => Err(format!("{name} {v} needs the kf estimator")),
             None => Ok(()),
@@ -114,12 +127,7 @@ pub fn with_kf_options(
     };
     // One option at a time, each checked by the filter's own range and reported under the
     // option's name.
-    let setters: [fn(&mut KfConfig, f64); 3] = [
-        |kf, v| kf.velocity_jump_mps = v,
-        |kf, v| kf.velocity_jump_dragged_fraction = v,
-        |kf, v| kf.leg_outlier_mps = v,
-    ];
-    for ((value, name), set) in given.into_iter().zip(names).zip(setters) {
+    for ((value, set), name) in settings.into_iter().zip(names) {
         if let Some(v) = value {
             set(kf, v);
             kf.validate().map_err(|e| format!("{name}: {e}"))?;
@@ -160,17 +168,12 @@ pub fn adopt_policy_filter(source: &mut StateSource, policy: &Policy, options: &
         return;
     }
     if let Some(kf) = source.kf_config_mut() {
-        let given = kf.clone();
         policy.config.kf.apply(kf);
         // What the options set (already applied and validated) stays.
-        if options.velocity_jump_mps.is_some() {
-            kf.velocity_jump_mps = given.velocity_jump_mps;
-        }
-        if options.velocity_jump_dragged_fraction.is_some() {
-            kf.velocity_jump_dragged_fraction = given.velocity_jump_dragged_fraction;
-        }
-        if options.leg_outlier_mps.is_some() {
-            kf.leg_outlier_mps = given.leg_outlier_mps;
+        for (value, set) in options.settings() {
+            if let Some(v) = value {
+                set(kf, v);
+            }
         }
     }
 }
