@@ -792,6 +792,7 @@ mod tests {
             &input,
             &input.contact_trust,
             &a.leg_velocities_world(&input, &omega),
+            &a.velocity_world(),
         );
         assert_eq!(rows.len(), 28);
         a.correct_sequential(&rows);
