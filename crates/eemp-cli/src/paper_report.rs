@@ -54,7 +54,9 @@ const PARTS: &[Part] = &[
         report: "reports/compare",
         figures: &["fig7.png", "fig9.png"],
         sections: &[
-            "EEMP's lead in CoT over model-free RL (paper: 50.4 % at ≤ 0.6 m/s)",
+            "EEMP's lead in CoT over model-free RL under the paper's eq. 8 (net mechanical power; paper: 50.4 % at ≤ 0.6 m/s)",
+            "EEMP's lead in CoT over model-free RL under the battery's energy: electrical CoT, the robot file's k, with idle power",
+            "The lead under every energy definition",
             "The paper's claims, measured",
         ],
     },

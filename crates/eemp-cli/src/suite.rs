@@ -364,6 +364,25 @@ pub struct SuiteRow {
     pub left_right_imbalance: Option<f64>,
     #[serde(default)]
     pub duty_factor_min: Option<f64>,
+    /// The battery's energy under the robot file's motor model (`WalkMetrics::electrical`;
+    /// empty without one, and in results written before these columns existed): the electrical
+    /// CoT with idle power, the drives' alone at the file's k and at 1/3 and 2 times it, the
+    /// idle power's share of the CoT (add it to a drives-only CoT for the total), the mean
+    /// battery power, W, and the energy per distance, Wh/km.
+    #[serde(default)]
+    pub cot_electrical: Option<f64>,
+    #[serde(default)]
+    pub cot_electrical_motors: Option<f64>,
+    #[serde(default)]
+    pub cot_electrical_motors_low_k: Option<f64>,
+    #[serde(default)]
+    pub cot_electrical_motors_high_k: Option<f64>,
+    #[serde(default)]
+    pub cot_idle: Option<f64>,
+    #[serde(default)]
+    pub electrical_power_w: Option<f64>,
+    #[serde(default)]
+    pub wh_per_km: Option<f64>,
 }
 
 impl SuiteRow {
@@ -393,7 +412,7 @@ pub const RESULTS: &str = "results.csv";
 /// whose bytes are the same for the same runs.
 pub const TIMING: &str = "timing.csv";
 /// The columns of `results.csv` (the fields of [`SuiteRow`]).
-const HEADER: &str = "run_id,method,scenario,speed_mps,seed,fell,fell_at_s,vel_rmse_mps,cot,manipulability,distance_m,steps_total,error,swing_time_s,step_height_m,body_height_m,ellipse_rx_m,ellipse_ry_m,negative_work_share,cot_abs_power,diagonal_pairs_together,lateral_pairs_together,left_right_imbalance,duty_factor_min";
+const HEADER: &str = "run_id,method,scenario,speed_mps,seed,fell,fell_at_s,vel_rmse_mps,cot,manipulability,distance_m,steps_total,error,swing_time_s,step_height_m,body_height_m,ellipse_rx_m,ellipse_ry_m,negative_work_share,cot_abs_power,diagonal_pairs_together,lateral_pairs_together,left_right_imbalance,duty_factor_min,cot_electrical,cot_electrical_motors,cot_electrical_motors_low_k,cot_electrical_motors_high_k,cot_idle,electrical_power_w,wh_per_km";
 pub const CONFIG: &str = "suite.toml";
 
 impl SuiteConfig {
@@ -682,6 +701,15 @@ pub fn simulate(
     row.set_params_mean(params.mean().map(|p| p.to_array()));
     row.negative_work_share = walk.metrics.negative_work_share;
     row.cot_abs_power = walk.metrics.cot_abs_power;
+    if let Some(e) = &walk.metrics.electrical {
+        row.cot_electrical = e.cot;
+        row.cot_electrical_motors = e.cot_motors;
+        row.cot_electrical_motors_low_k = e.band[0].cot_motors;
+        row.cot_electrical_motors_high_k = e.band[2].cot_motors;
+        row.cot_idle = e.cot.zip(e.cot_motors).map(|(a, b)| a - b);
+        row.electrical_power_w = e.mean_power_w;
+        row.wh_per_km = e.wh_per_km;
+    }
     if let Some(g) = &walk.gait {
         row.diagonal_pairs_together = Some(g.diagonal_pairs_together);
         row.lateral_pairs_together = Some(g.lateral_pairs_together);

@@ -54,7 +54,64 @@ pub struct Cell {
     pub lateral_together: Stat,
     pub left_right_imbalance: Stat,
     pub duty_factor_min: Stat,
+    /// One per [`ENERGY_DEFINITIONS`] entry, in its order.
+    pub energy: Vec<Stat>,
+    /// The battery's mean power, W (the robot file's motor model, with idle power).
+    pub electrical_power_w: Stat,
 }
+
+/// One way to count a run's energy, as the reports compare them.
+pub struct EnergyDefinition {
+    /// How the report names it.
+    pub label: &'static str,
+    /// The run's CoT under it (dimensionless; `None`: not measured).
+    pub cot: fn(&SuiteRow) -> Option<f64>,
+}
+
+fn plus(a: Option<f64>, b: Option<f64>) -> Option<f64> {
+    a.zip(b).map(|(a, b)| a + b)
+}
+
+/// The energy definitions of the reports' lead tables: the battery's first (the robot file's
+/// motor model with idle power, then its heat coefficients k at 1/3, 1 and 2 times, with and
+/// without idle power), then the mechanical measures (the paper's eq. 8 and Σ|τq̇|).
+pub const ENERGY_DEFINITIONS: [EnergyDefinition; 8] = [
+    EnergyDefinition {
+        label: "electrical, k, idle",
+        cot: |r| r.cot_electrical,
+    },
+    EnergyDefinition {
+        label: "electrical, k/3, idle",
+        cot: |r| plus(r.cot_electrical_motors_low_k, r.cot_idle),
+    },
+    EnergyDefinition {
+        label: "electrical, 2k, idle",
+        cot: |r| plus(r.cot_electrical_motors_high_k, r.cot_idle),
+    },
+    EnergyDefinition {
+        label: "electrical, k, no idle",
+        cot: |r| r.cot_electrical_motors,
+    },
+    EnergyDefinition {
+        label: "electrical, k/3, no idle",
+        cot: |r| r.cot_electrical_motors_low_k,
+    },
+    EnergyDefinition {
+        label: "electrical, 2k, no idle",
+        cot: |r| r.cot_electrical_motors_high_k,
+    },
+    EnergyDefinition {
+        label: "eq. 8 (paper)",
+        cot: |r| r.cot,
+    },
+    EnergyDefinition {
+        label: "Σ|τq̇|",
+        cot: |r| r.cot_abs_power,
+    },
+];
+
+/// The index of the paper's eq. (8) in [`ENERGY_DEFINITIONS`].
+const EQ8: usize = 6;
 
 #[derive(Clone, Debug, Default)]
 pub struct Stat {
@@ -82,8 +139,60 @@ impl Stat {
     }
 }
 
-/// The line a reader wants first: EEMP's CoT lead (1 − CoT_EEMP / CoT_method) over every
-/// model-free method, per speed at ≤ 0.6 m/s and on average (the paper's 50.4 %).
+/// The learned baselines EEMP's lead is measured over: every model-free policy.
+fn rivals(cfg: &SuiteConfig) -> Vec<&MethodConfig> {
+    cfg.methods
+        .iter()
+        .filter(|m| m.kind == "model-free")
+        .collect()
+}
+
+/// EEMP-Analytical: the first EEMP method that is not a table EEMP-RL learned.
+fn analytical(cfg: &SuiteConfig) -> Option<&MethodConfig> {
+    cfg.methods.iter().find(|m| m.kind == "eemp" && !m.eemp_rl)
+}
+
+/// 1 − CoT_EEMP / CoT_method per speed, under energy definition `def`; NaN where either has no
+/// CoT.
+fn lead_at(
+    cells: &BTreeMap<CellKey, Cell>,
+    key: &dyn Fn(&str, f64) -> CellKey,
+    eemp: &str,
+    rival: &str,
+    v: f64,
+    def: usize,
+) -> f64 {
+    let cot = |m: &str| {
+        cells
+            .get(&key(m, v))
+            .and_then(|c| c.energy.get(def))
+            .map(Stat::mean)
+            .unwrap_or(f64::NAN)
+    };
+    1.0 - cot(eemp) / cot(rival)
+}
+
+/// The mean of the finite values, NaN if none.
+fn finite_mean(xs: impl Iterator<Item = f64>) -> f64 {
+    let v: Vec<f64> = xs.filter(|x| x.is_finite()).collect();
+    match v.len() {
+        0 => f64::NAN,
+        n => v.iter().sum::<f64>() / n as f64,
+    }
+}
+
+fn pct(x: f64) -> String {
+    if x.is_finite() {
+        format!("{:.1} %", 100.0 * x)
+    } else {
+        "–".into()
+    }
+}
+
+/// The lines a reader wants first: EEMP's CoT lead (1 − CoT_EEMP / CoT_method) over every
+/// model-free method per speed, under the battery's energy and under the paper's eq. (8); then
+/// the mean lead at ≤ 0.6 m/s under every energy definition, and whether the methods' ranking
+/// holds under all of them.
 fn lead_section(
     md: &mut String,
     cfg: &SuiteConfig,
@@ -91,59 +200,137 @@ fn lead_section(
     cells: &BTreeMap<CellKey, Cell>,
     key: &dyn Fn(&str, f64) -> CellKey,
 ) {
-    let Some(e) = cfg.methods.iter().find(|m| m.kind == "eemp" && !m.eemp_rl) else {
+    let Some(e) = analytical(cfg) else {
         return;
     };
-    let rivals: Vec<&MethodConfig> = cfg
-        .methods
-        .iter()
-        .filter(|m| m.kind == "model-free")
-        .collect();
+    let rivals = rivals(cfg);
     if rivals.is_empty() {
         return;
     }
-    let cot = |m: &str, v: f64| {
-        cells
-            .get(&key(m, v))
-            .map(|c| c.cot.mean())
-            .unwrap_or(f64::NAN)
-    };
-    let _ = writeln!(
-        md,
-        "## EEMP's lead in CoT over model-free RL (paper: 50.4 % at ≤ 0.6 m/s)\n\n\
-         1 − CoT({}) / CoT(method), CoT of eq. 8 (positive mechanical power per distance, \
-         dimensionless), means over the seeds that did not fall.\n",
-        e.name
-    );
-    let head: Vec<String> = rivals.iter().map(|m| format!("over {}", m.name)).collect();
-    let _ = writeln!(md, "| speed m/s | {} |", head.join(" | "));
-    let _ = writeln!(md, "|---|{}", "---|".repeat(rivals.len()));
-    let mut sums = vec![(0.0, 0usize); rivals.len()];
-    for &v in speeds.iter().filter(|v| **v <= 0.6 + 1e-9) {
-        let cols: Vec<String> = rivals
+    let low: Vec<f64> = speeds
+        .iter()
+        .copied()
+        .filter(|v| *v <= 0.6 + 1e-9)
+        .collect();
+    for (def, title) in [
+        (
+            0,
+            "the battery's energy: electrical CoT, the robot file's k, with idle power",
+        ),
+        (
+            EQ8,
+            "the paper's eq. 8 (net mechanical power; paper: 50.4 % at ≤ 0.6 m/s)",
+        ),
+    ] {
+        let _ = writeln!(
+            md,
+            "## EEMP's lead in CoT over model-free RL under {title}\n\n\
+             1 − CoT({}) / CoT(method) per speed, means over the seeds that did not fall.\n",
+            e.name
+        );
+        let head: Vec<String> = rivals.iter().map(|m| format!("over {}", m.name)).collect();
+        let _ = writeln!(md, "| speed m/s | {} |", head.join(" | "));
+        let _ = writeln!(md, "|---|{}", "---|".repeat(rivals.len()));
+        for &v in speeds {
+            let cols: Vec<String> = rivals
+                .iter()
+                .map(|m| pct(lead_at(cells, key, &e.name, &m.name, v, def)))
+                .collect();
+            let _ = writeln!(md, "| {v:.2} | {} |", cols.join(" | "));
+        }
+        let means: Vec<String> = rivals
             .iter()
-            .zip(sums.iter_mut())
-            .map(|(m, s)| {
-                let lead = 1.0 - cot(&e.name, v) / cot(&m.name, v);
-                if lead.is_finite() {
-                    s.0 += lead;
-                    s.1 += 1;
-                    format!("{:.1} %", 100.0 * lead)
-                } else {
-                    "–".into()
-                }
+            .map(|m| {
+                let x = finite_mean(
+                    low.iter()
+                        .map(|&v| lead_at(cells, key, &e.name, &m.name, v, def)),
+                );
+                format!("**{}**", pct(x))
             })
             .collect();
-        let _ = writeln!(md, "| {v:.2} | {} |", cols.join(" | "));
+        let _ = writeln!(md, "| mean ≤ 0.6 | {} |\n", means.join(" | "));
     }
-    let means: Vec<String> = sums
-        .iter()
-        .map(|(s, n)| match n {
-            0 => "–".into(),
-            n => format!("**{:.1} %**", 100.0 * s / *n as f64),
-        })
-        .collect();
-    let _ = writeln!(md, "| mean | {} |\n", means.join(" | "));
+    let _ = writeln!(
+        md,
+        "## The lead under every energy definition\n\n\
+         Mean over the speeds ≤ 0.6 m/s of 1 − CoT({}) / CoT(method). Electrical: each joint \
+         draws τq̇ + k·τ² under the robot file's `[motor]` model (k its heat coefficients, scaled \
+         by 1/3 and 2 for the band), with or without the electronics' idle power; eq. 8: the \
+         paper's net mechanical power; Σ|τq̇|: absolute joint power (docs/energy.md).\n",
+        e.name
+    );
+    let _ = writeln!(
+        md,
+        "| over | {} |",
+        ENERGY_DEFINITIONS.map(|d| d.label).join(" | ")
+    );
+    let _ = writeln!(md, "|---|{}", "---|".repeat(ENERGY_DEFINITIONS.len()));
+    for m in &rivals {
+        let cols: Vec<String> = (0..ENERGY_DEFINITIONS.len())
+            .map(|d| {
+                pct(finite_mean(
+                    low.iter()
+                        .map(|&v| lead_at(cells, key, &e.name, &m.name, v, d)),
+                ))
+            })
+            .collect();
+        let _ = writeln!(md, "| {} | {} |", m.name, cols.join(" | "));
+    }
+    // The ranking of every method by its mean CoT at ≤ 0.6 m/s, per definition.
+    let ranking = |d: usize| -> Vec<String> {
+        let mut scored: Vec<(f64, &str)> = cfg
+            .methods
+            .iter()
+            .map(|m| {
+                let c: Vec<f64> = low
+                    .iter()
+                    .map(|&v| {
+                        cells
+                            .get(&key(&m.name, v))
+                            .and_then(|c| c.energy.get(d))
+                            .map(Stat::mean)
+                            .unwrap_or(f64::NAN)
+                    })
+                    .collect();
+                let all = c.iter().all(|x| x.is_finite());
+                (
+                    if all {
+                        c.iter().sum::<f64>() / c.len() as f64
+                    } else {
+                        f64::NAN
+                    },
+                    m.name.as_str(),
+                )
+            })
+            .filter(|(x, _)| x.is_finite())
+            .collect();
+        scored.sort_by(|a, b| a.0.total_cmp(&b.0));
+        scored.into_iter().map(|(_, n)| n.to_string()).collect()
+    };
+    let rankings: Vec<Vec<String>> = (0..ENERGY_DEFINITIONS.len()).map(ranking).collect();
+    let same = rankings.windows(2).all(|w| w[0] == w[1]);
+    let first_same = rankings.iter().all(|r| r.first() == rankings[0].first());
+    let _ = writeln!(
+        md,
+        "\nThe methods ranked by mean CoT at ≤ 0.6 m/s (methods with a CoT at every such speed): \
+         the ranking is {} under every definition{}.\n",
+        if same { "the same" } else { "**not** the same" },
+        if same {
+            String::new()
+        } else if first_same {
+            format!(
+                ", but {} is first under all of them",
+                rankings[0].first().map(String::as_str).unwrap_or("–")
+            )
+        } else {
+            ", and the first place changes".into()
+        }
+    );
+    let _ = writeln!(md, "| definition | ranking, lowest CoT first |\n|---|---|");
+    for (d, r) in ENERGY_DEFINITIONS.iter().zip(&rankings) {
+        let _ = writeln!(md, "| {} | {} |", d.label, r.join(" < "));
+    }
+    let _ = writeln!(md);
 }
 
 /// What gait each method walks and how much of its joints' work is negative, averaged over
@@ -211,6 +398,8 @@ pub fn aggregate(rows: &[SuiteRow]) -> BTreeMap<CellKey, Cell> {
         );
         let c = m.entry(key).or_default();
         c.runs += 1;
+        c.energy
+            .resize_with(ENERGY_DEFINITIONS.len(), Stat::default);
         if r.fell {
             c.falls += 1;
             continue;
@@ -224,6 +413,10 @@ pub fn aggregate(rows: &[SuiteRow]) -> BTreeMap<CellKey, Cell> {
         c.lateral_together.push(r.lateral_pairs_together);
         c.left_right_imbalance.push(r.left_right_imbalance);
         c.duty_factor_min.push(r.duty_factor_min);
+        for (stat, def) in c.energy.iter_mut().zip(&ENERGY_DEFINITIONS) {
+            stat.push((def.cot)(r));
+        }
+        c.electrical_power_w.push(r.electrical_power_w);
     }
     m
 }
@@ -538,7 +731,12 @@ pub fn compare(args: &SuiteArgs) -> Result<(), String> {
         }
     };
     let panels = [
-        metric("CoT", "-", |c| &c.cot),
+        metric(
+            "electrical CoT, with idle power (robot file's motor model)",
+            "-",
+            |c| &c.energy[0],
+        ),
+        metric("CoT of eq. 8 (the paper's, mechanical)", "-", |c| &c.cot),
         metric("manipulability", "-", |c| &c.manipulability),
         metric("velocity RMSE", "m/s", |c| &c.vel_rmse),
     ];
@@ -600,18 +798,20 @@ pub fn compare(args: &SuiteArgs) -> Result<(), String> {
     let _ = writeln!(md, "## Per speed\n");
     let _ = writeln!(
         md,
-        "| speed m/s | method | falls | CoT | manipulability | vel RMSE m/s |"
+        "| speed m/s | method | falls | electrical CoT | battery power W | CoT eq. 8 | manipulability | vel RMSE m/s |"
     );
-    let _ = writeln!(md, "|---|---|---|---|---|---|");
+    let _ = writeln!(md, "|---|---|---|---|---|---|---|---|");
     for &v in &speeds {
         for m in &cfg.methods {
             if let Some(c) = cells.get(&key(&m.name, v)) {
                 let _ = writeln!(
                     md,
-                    "| {v:.2} | {} | {}/{} | {} | {} | {} |",
+                    "| {v:.2} | {} | {}/{} | {} | {} | {} | {} | {} |",
                     m.name,
                     c.falls,
                     c.runs,
+                    spread(&c.energy[0]),
+                    f3(c.electrical_power_w.mean()),
                     spread(&c.cot),
                     spread(&c.manipulability),
                     spread(&c.vel_rmse)
@@ -705,12 +905,17 @@ pub fn compare(args: &SuiteArgs) -> Result<(), String> {
                 continue;
             }
             let mean = imp.iter().sum::<f64>() / imp.len() as f64;
+            let electrical = finite_mean(
+                low.iter()
+                    .map(|&v| lead_at(&cells, &key, e, &mf.name, v, 0)),
+            );
             let _ = writeln!(
                 md,
-                "| CoT improvement of EEMP over model-free RL at ≤ 0.6 m/s: 50.4 % | over {}: {:.1} % (mean over {} speeds of 1 − CoT_EEMP / CoT_model-free) |",
+                "| CoT improvement of EEMP over model-free RL at ≤ 0.6 m/s: 50.4 % (eq. 8) | over {}: {:.1} % under eq. 8 (mean over {} speeds of 1 − CoT_EEMP / CoT_model-free); {} under the battery's energy (electrical CoT, the robot file's k, with idle power) |",
                 mf.name,
                 100.0 * mean,
-                imp.len()
+                imp.len(),
+                pct(electrical)
             );
         }
     }
@@ -928,8 +1133,13 @@ pub fn robustness(args: &SuiteArgs) -> Result<(), String> {
             values: values(&|c| 100.0 * (c.runs - c.falls) as f64 / c.runs.max(1) as f64),
         },
         BarPanel {
-            title: "CoT (mean over runs without a fall)".into(),
-            y_label: "CoT [-]".into(),
+            title: "electrical CoT with idle power (mean over runs without a fall)".into(),
+            y_label: "electrical CoT [-]".into(),
+            values: values(&|c| c.energy[0].mean()),
+        },
+        BarPanel {
+            title: "CoT of eq. 8, the paper's (mean over runs without a fall)".into(),
+            y_label: "CoT eq. 8 [-]".into(),
             values: values(&|c| c.cot.mean()),
         },
         BarPanel {
@@ -953,7 +1163,9 @@ pub fn robustness(args: &SuiteArgs) -> Result<(), String> {
         "{} runs: {} methods × {} scenario–speed cases × {} seeds, {} s each, estimator `{}`. \
          Regenerate: `eemp robustness --config {} --out DIR` (resumable). A run succeeds if it \
          walks the whole time without a fall; CoT and velocity RMSE are means over the \
-         successful runs (min–max over seeds in brackets).\n",
+         successful runs (min–max over seeds in brackets). Electrical CoT: the battery's energy \
+         under the robot file's motor model with idle power; CoT eq. 8: the paper's net \
+         mechanical power (docs/energy.md).\n",
         rows.len(),
         methods.len(),
         cats.len(),
@@ -968,9 +1180,9 @@ pub fn robustness(args: &SuiteArgs) -> Result<(), String> {
     let _ = writeln!(md, "![robustness](robustness.png)\n");
     let _ = writeln!(
         md,
-        "| scenario | speed m/s | method | success | CoT | vel RMSE m/s | falls at s |"
+        "| scenario | speed m/s | method | success | electrical CoT | CoT eq. 8 | vel RMSE m/s | falls at s |"
     );
-    let _ = writeln!(md, "|---|---|---|---|---|---|---|");
+    let _ = writeln!(md, "|---|---|---|---|---|---|---|---|");
     for c in &cats {
         for m in &methods {
             if let Some(x) = cell(m, c) {
@@ -986,11 +1198,12 @@ pub fn robustness(args: &SuiteArgs) -> Result<(), String> {
                     .collect();
                 let _ = writeln!(
                     md,
-                    "| {} | {:.2} | {m} | {}/{} | {} | {} | {} |",
+                    "| {} | {:.2} | {m} | {}/{} | {} | {} | {} | {} |",
                     c.0,
                     c.1,
                     x.runs - x.falls,
                     x.runs,
+                    spread(&x.energy[0]),
                     spread(&x.cot),
                     spread(&x.vel_rmse),
                     if falls.is_empty() {

@@ -66,7 +66,11 @@ pub fn walk(d: &WalkDescription, o: &WalkOutputs) -> Result<(), String> {
         "cmd_vx_mps",
         "cmd_vy_mps",
         "cmd_yaw_rate_rps",
+        // Eq. (8)'s power (the paper's: net mechanical, clipped after the sum), W.
         "power_w",
+        // The battery's power under the robot's motor model (drives and idle), W; NaN
+        // without a `[motor]` section.
+        "electrical_power_w",
         // The planner parameters in force (EEMP: constant, the table's at the command, or
         // EEMP-RL's choice; NaN for a controller without them).
         "swing_time_s",
@@ -109,6 +113,8 @@ pub fn walk(d: &WalkDescription, o: &WalkOutputs) -> Result<(), String> {
     let mut frames = Vec::new();
     let video_every = (1.0 / (crate::video::FPS * robot.simulation.timestep_s)).round() as usize;
     let mut mu_estimate = f64::NAN;
+    let motor = robot.motor_model();
+    let motor = motor.as_ref();
     let observer = |r: &eemp_sim::closed_loop::StepRecord| {
         recorder.observe(r);
         if let Some(ev) = &r.output.mpc_event {
@@ -152,6 +158,9 @@ pub fn walk(d: &WalkDescription, o: &WalkOutputs) -> Result<(), String> {
                 cmd.vy_mps,
                 cmd.yaw_rate_rps,
                 positive_power_w(&qd, &r.output.torques),
+                motor
+                    .map(|m| m.battery_power_w(&qd, &r.output.torques))
+                    .unwrap_or(f64::NAN),
             ];
             match r.plan.and_then(|p| p.params) {
                 Some(p) => row.extend(p.to_array()),
@@ -283,6 +292,18 @@ pub fn walk(d: &WalkDescription, o: &WalkOutputs) -> Result<(), String> {
             serde_json::json!(m.negative_work_share),
         ),
         ("cot_abs_power", serde_json::json!(m.cot_abs_power)),
+        // The energy a battery pays under the robot file's motor model (docs/energy.md):
+        // electrical power, energy, Wh/km, CoT with and without idle power, the k band.
+        ("electrical", serde_json::json!(m.electrical)),
+        ("electrical_note", serde_json::json!(m.electrical_note)),
+        (
+            "cot_definition",
+            serde_json::json!(
+                "cot, cot_j_per_m, energy_j: the paper's eq. (8), net mechanical power of all \
+                 joints clipped after the sum (no motor heat, no electronics); electrical.cot: \
+                 the battery's, with idle power"
+            ),
+        ),
         ("gait_measure", serde_json::json!(run.gait)),
         (
             "robot",

@@ -10,6 +10,7 @@
 //! - [`estimator`]: attitude from the IMU and a linear Kalman filter for trunk position and
 //!   velocity from IMU + leg kinematics (what the robot knows of itself).
 //! - [`hardware`]: the A1's legacy low-level UDP protocol (datagram codec and CRC).
+//! - [`energy`]: the motor model and the electrical energy account (what the battery pays).
 //! - [`metrics`]: cost of transport (eq. 8) and force manipulability (eq. 9); [`gait_measure`]:
 //!   duty factors, pair synchrony and left/right load of any walk.
 
@@ -23,6 +24,7 @@ pub mod control;
 pub mod controller;
 pub mod convex_mpc;
 pub mod eemp_controller;
+pub mod energy;
 pub mod estimator;
 pub mod gait_measure;
 pub mod hardware;

@@ -2,6 +2,7 @@
 //! velocity tracking.
 
 use crate::convex_mpc::model::GRAVITY;
+use crate::energy::{ElectricalMetrics, EnergyAccount, MotorModel};
 use crate::leg::{Leg, LegMap};
 use nalgebra::{Matrix3, Vector3};
 
@@ -18,32 +19,6 @@ pub fn positive_power_w(qd: &LegMap<Vector3<f64>>, tau: &LegMap<Vector3<f64>>) -
 /// Eq. (8): CoT = Σ max(q̇ᵀτ, 0)·dt / ΔD, in J/m. `None` when the distance is not positive.
 pub fn cost_of_transport_j_per_m(energy_j: f64, distance_m: f64) -> Option<f64> {
     (distance_m > 0.0).then(|| energy_j / distance_m)
-}
-
-/// Heat coefficient k of the electrical power estimate Σⱼ max(τⱼq̇ⱼ + k·τⱼ², 0), W/(N·m)²:
-/// Yang et al. (CoRL 2021)'s value for the A1. Unitree publishes neither the A1's torque
-/// constant nor its winding resistance, so this is an estimate from another work, not A1 data
-/// (`../shared/reference/estimation-hardware-notes.md`); it only serves the sensitivity of the
-/// CoT definition (`eemp sweep sensitivity`).
-pub const YANG_HEAT_COEFFICIENT: f64 = 0.3;
-
-/// Electrical power estimate of all joints, W: Σⱼ max(τⱼq̇ⱼ + k·τⱼ², 0), mechanical power plus
-/// the motors' Joule heat k·τ², no regeneration (Yang et al. 2021's energy term).
-pub fn electrical_power_w(
-    qd: &LegMap<Vector3<f64>>,
-    tau: &LegMap<Vector3<f64>>,
-    heat_coefficient: f64,
-) -> f64 {
-    Leg::ALL
-        .iter()
-        .flat_map(|l| (0..3).map(move |j| (qd[*l][j], tau[*l][j])))
-        .map(|(w, t)| joint_electrical_power_w(w, t, heat_coefficient))
-        .sum()
-}
-
-/// One joint's term of [`electrical_power_w`]: max(τq̇ + k·τ², 0), W.
-fn joint_electrical_power_w(qd: f64, tau: f64, heat_coefficient: f64) -> f64 {
-    (tau * qd + heat_coefficient * tau * tau).max(0.0)
 }
 
 /// The dimensionless CoT beside eq. (8): E / (m g ΔD).
@@ -87,7 +62,8 @@ pub struct MetricsAccumulator {
     time_s: f64,
     joint_positive_work_j: f64,
     joint_negative_work_j: f64,
-    electrical_energy_j: f64,
+    /// The battery's account, at every observed (physics) step; `None` without a motor model.
+    electrical: Option<EnergyAccount>,
 }
 
 /// A run's CoTs are reported only over a straight-line displacement of at least this much, m.
@@ -121,12 +97,25 @@ pub struct WalkMetrics {
     /// CoT of the absolute joint power, Σⱼ |q̇ⱼτⱼ|·dt / (m g ΔD) (Fu et al. 2021's energy
     /// measure), for comparison with papers that use it.
     pub cot_abs_power: Option<f64>,
-    /// CoT of the electrical estimate, ∫[`electrical_power_w`] dt / (m g ΔD) with
-    /// [`YANG_HEAT_COEFFICIENT`]: mechanical power plus Joule heat, no regeneration.
+    /// The drives' electrical CoT under the robot's motor model, no idle power (`None` without
+    /// one): `electrical.cot_motors`, kept as the sweeps' column.
     pub cot_electrical: Option<f64>,
+    /// What the battery paid ([`crate::energy`]); `None` without a motor model, with
+    /// `electrical_note` saying so.
+    pub electrical: Option<ElectricalMetrics>,
+    pub electrical_note: Option<&'static str>,
 }
 
 impl MetricsAccumulator {
+    /// An accumulator that also keeps the battery's account under `motor` (the robot file's
+    /// `[motor]`; `None`: no electrical figures).
+    pub fn new(motor: Option<MotorModel>) -> Self {
+        MetricsAccumulator {
+            electrical: motor.map(EnergyAccount::new),
+            ..Default::default()
+        }
+    }
+
     /// One control step of length `dt`: body position, body velocity and command in the heading
     /// frame, joint velocities and applied torques, stance set and the stance legs' Jacobians.
     #[allow(clippy::too_many_arguments)]
@@ -150,21 +139,18 @@ impl MetricsAccumulator {
         }
         self.end_xy = xy;
         self.energy_j += positive_power_w(qd, tau) * dt;
-        // One pass over the joints for the per-joint measures; the electrical terms are summed
-        // in `electrical_power_w`'s order, so the sum is its value bit for bit.
-        let mut electrical_w = 0.0;
         for leg in Leg::ALL {
             for j in 0..3 {
-                let p = qd[leg][j] * tau[leg][j];
+                let p = crate::energy::joint_mechanical_power_w(qd[leg][j], tau[leg][j]);
                 match p >= 0.0 {
                     true => self.joint_positive_work_j += p * dt,
                     false => self.joint_negative_work_j -= p * dt,
                 }
-                electrical_w +=
-                    joint_electrical_power_w(qd[leg][j], tau[leg][j], YANG_HEAT_COEFFICIENT);
             }
         }
-        self.electrical_energy_j += electrical_w * dt;
+        if let Some(e) = &mut self.electrical {
+            e.observe(dt, qd, tau);
+        }
         self.sq_vel_err +=
             (v_heading.x - v_command_xy[0]).powi(2) + (v_heading.y - v_command_xy[1]).powi(2);
         self.vel_samples += 1;
@@ -193,6 +179,10 @@ impl MetricsAccumulator {
         let cot = |energy_j: f64| {
             travelled_m.and_then(|d| cost_of_transport_dimensionless(energy_j, mass_kg, d))
         };
+        let electrical = self
+            .electrical
+            .as_ref()
+            .map(|e| e.finish(mass_kg, travelled_m));
         WalkMetrics {
             distance_m: distance,
             path_length_m: self.path_m,
@@ -216,7 +206,11 @@ impl MetricsAccumulator {
                 (total > 0.0).then(|| self.joint_negative_work_j / total)
             },
             cot_abs_power: cot(self.joint_positive_work_j + self.joint_negative_work_j),
-            cot_electrical: cot(self.electrical_energy_j),
+            cot_electrical: electrical.as_ref().and_then(|e| e.cot_motors),
+            electrical_note: electrical
+                .is_none()
+                .then_some(crate::energy::NO_MOTOR_MODEL_NOTE),
+            electrical,
         }
     }
 }
@@ -331,7 +325,12 @@ mod tests {
         // Two steps of 0.5 s with FR's hip at +20 W and FL's knee at −10 W: eq. 8 takes
         // max(20 − 10, 0) = 10 W (10 J), the joints do 20 J and absorb 10 J; the |power| CoT is
         // 30 J / (10 kg · g · 1 m).
-        let mut acc = MetricsAccumulator::default();
+        let mut acc = MetricsAccumulator::new(Some(MotorModel {
+            heat_coefficient_w_per_nm2: [0.3; 3],
+            idle_power_w: 0.0,
+            regeneration_fraction: 0.0,
+            shared_bus: false,
+        }));
         let mut qd = LegMap::splat(Vector3::zeros());
         let mut tau = LegMap::splat(Vector3::zeros());
         qd[Leg::FrontRight].x = 2.0;
@@ -363,16 +362,9 @@ mod tests {
     }
 
     #[test]
-    fn electrical_power_by_hand() {
-        // A braking joint whose heat is below its absorbed power counts 0 (no regeneration):
-        // τ = 2, q̇ = −5: −10 + 0.3·4 = −8.8 → 0; τ = −4, q̇ = 1: −4 + 0.3·16 = 0.8.
-        let mut qd = LegMap::splat(Vector3::zeros());
-        let mut tau = LegMap::splat(Vector3::zeros());
-        (qd[Leg::RearLeft].y, tau[Leg::RearLeft].y) = (-5.0, 2.0);
-        (qd[Leg::RearRight].z, tau[Leg::RearRight].z) = (1.0, -4.0);
-        let p = electrical_power_w(&qd, &tau, YANG_HEAT_COEFFICIENT);
-        assert!((p - 0.8).abs() < 1e-12, "{p}");
-        // Without heat it is the positive joint power, joint by joint.
-        assert_eq!(electrical_power_w(&qd, &tau, 0.0), 0.0);
+    fn without_a_motor_model_the_electrical_figures_are_absent_and_said_so() {
+        let m = MetricsAccumulator::default().finish(10.0);
+        assert_eq!((m.cot_electrical, m.electrical.is_none()), (None, true));
+        assert!(m.electrical_note.unwrap().contains("[motor]"));
     }
 }

@@ -24,6 +24,11 @@ pub struct RobotConfig {
     /// robot's id hash, so tables and policies keep their stamp).
     #[serde(default, skip_serializing_if = "ControlDefaults::is_empty")]
     pub control: ControlDefaults,
+    /// The drives' electrical model (`[motor]`, [`crate::energy`]); without it every electrical
+    /// figure is reported as absent, never from invented constants. Outside the robot's id hash:
+    /// it changes what a run is charged, not how it moves.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub motor: Option<crate::energy::MotorConfig>,
 }
 
 /// `[control]` in a robot file: controller settings measured for this robot, each overridden by
@@ -326,11 +331,22 @@ impl RobotConfig {
         }
     }
 
-    /// Loads and validates a robot file.
+    /// Loads and validates a robot file; a value out of range is named with the file.
     pub fn load(path: &std::path::Path) -> Result<Self, ConfigError> {
         let config: RobotConfig = crate::config_error::load_toml(path)?;
-        config.validate()?;
+        config.validate().map_err(|e| ConfigError::Invalid {
+            name: path.display().to_string(),
+            message: e.to_string(),
+        })?;
         Ok(config)
+    }
+
+    /// The validated motor model of `[motor]`, if the file has one.
+    pub fn motor_model(&self) -> Option<crate::energy::MotorModel> {
+        self.motor.as_ref().map(|m| {
+            m.resolve()
+                .expect("RobotConfig::validate checked the motor section")
+        })
     }
 
     pub fn validate(&self) -> Result<(), ConfigError> {
@@ -385,6 +401,9 @@ impl RobotConfig {
             }
         }
         MotorOrder::new(&self.sdk)?;
+        if let Some(m) = &self.motor {
+            m.resolve()?;
+        }
         Ok(())
     }
 

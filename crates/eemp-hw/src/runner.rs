@@ -145,6 +145,11 @@ pub struct HwReport {
     pub link: LinkStats,
     /// What the motion switcher said before the start (DDS with release).
     pub release: Option<String>,
+    /// What the battery paid under the robot file's motor model, from the robot's own torque
+    /// estimates and joint velocities at each state received; distance from the filter's
+    /// estimate. `None` without a `[motor]` section, with `electrical_note` saying so.
+    pub electrical: Option<eemp_core::energy::ElectricalMetrics>,
+    pub electrical_note: Option<&'static str>,
 }
 
 /// The runner's end of the wire.
@@ -253,6 +258,11 @@ pub fn run_hw(
     let mut model = Simulation::new(robot, &Default::default()).map_err(|e| e.to_string())?;
     let mut safety = SafetyLayer::new(robot, opts.safety.clone()).map_err(|e| e.to_string())?;
     let mut report = HwReport::default();
+    let mut energy = robot
+        .motor_model()
+        .map(eemp_core::energy::EnergyAccount::new);
+    let mut last_state_t: Option<f64> = None;
+    let (mut start_xy, mut end_xy): (Option<[f64; 2]>, [f64; 2]) = (None, [0.0; 2]);
     let mut wire = match &opts.transport {
         Transport::Udp {
             bind,
@@ -354,6 +364,12 @@ pub fn run_hw(
                 first_tick_s = sensed.tick_s;
             }
             let t = sensed.tick_s - first_tick_s;
+            // Each state charges the time since the one before (its torques held over it).
+            if let (Some(e), Some(prev)) = (energy.as_mut(), last_state_t) {
+                let qd = sensed.joints.map(|_, j| j.qd);
+                e.observe((t - prev).max(0.0), &qd, &sensed.tau);
+            }
+            last_state_t = Some(t);
             let kf = match &mut kf {
                 Some(k) => k,
                 None => {
@@ -405,6 +421,9 @@ pub fn run_hw(
                     spiked = true;
                 }
             }
+            let xy = [est.body.p_world.x, est.body.p_world.y];
+            start_xy.get_or_insert(xy);
+            end_xy = xy;
             estimate = Some(est);
         }
         // The command sent now stays in force until the next cycle: the watchdog judges the
@@ -464,5 +483,13 @@ pub fn run_hw(
         std::thread::sleep(Duration::from_millis(1));
     }
     report.link = wire.stats();
+    let travelled_m = start_xy
+        .map(|a| (end_xy[0] - a[0]).hypot(end_xy[1] - a[1]))
+        .filter(|d| *d >= eemp_core::metrics::MIN_COT_DISTANCE_M);
+    report.electrical = energy.map(|e| e.finish(robot.total_mass_kg(), travelled_m));
+    report.electrical_note = report
+        .electrical
+        .is_none()
+        .then_some(eemp_core::energy::NO_MOTOR_MODEL_NOTE);
     Ok(report)
 }

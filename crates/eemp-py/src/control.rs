@@ -343,6 +343,9 @@ pub fn walk_json(
         "energy_j": m.energy_j,
         "cot": m.cot,
         "cot_j_per_m": m.cot_j_per_m,
+        // The battery's figures under the robot file's motor model (`cot` is eq. 8's).
+        "electrical": m.electrical,
+        "electrical_note": m.electrical_note,
         "manipulability": m.manipulability,
         "vel_rmse_mps": m.vel_rmse_mps,
         "steps_total": run.steps.0.iter().sum::<usize>(),

@@ -537,7 +537,7 @@ pub fn run_walk_commanded(
     let mut sim = Simulation::new(&robot, &scene)?;
     reset_to_start(&mut sim, start, spec.seed);
     let kin = LegKinematics::new(&robot);
-    let mut metrics = MetricsAccumulator::default();
+    let mut metrics = MetricsAccumulator::new(robot.motor_model());
     let mut gait = GaitMeter::default();
     let dt = sim.timestep_s();
     let mass = robot.total_mass_kg();

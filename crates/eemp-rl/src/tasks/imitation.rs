@@ -619,7 +619,14 @@ impl Env for ImitationEnv {
             fell,
             unstable,
             last_tau,
-        } = run_pd_period(&mut self.loop_, &mut self.pd, self.command, self.substeps);
+            ..
+        } = run_pd_period(
+            &mut self.loop_,
+            &mut self.pd,
+            self.command,
+            self.substeps,
+            None,
+        );
         let cfg = &self.agent.config;
         let dt = cfg.policy_period_s;
         let phase = self.agent.next_phase(self.memory.phase, vx);

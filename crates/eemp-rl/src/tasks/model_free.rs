@@ -12,6 +12,7 @@ use crate::env::{Env, StepInfo};
 use crate::mirror::{MirrorBuilder, MirrorMap, AXIAL, JOINTS, POLAR};
 use eemp_core::body_state::RobotState;
 use eemp_core::config_error::{check_range, ConfigError};
+use eemp_core::energy::MotorModel;
 use eemp_core::joint_pd::{JointPd, PdGains};
 use eemp_core::kinematics::LegKinematics;
 use eemp_core::leg::{Leg, LegMap};
@@ -63,6 +64,10 @@ pub struct RewardWeights {
     /// clock's first half, FR+RL in its second), as a share of the four (Walk These Ways'
     /// contact tracking, binary form). Needs `extra_obs.gait_clock_hz` > 0.
     pub gait_schedule: f64,
+    /// The drives' electrical power, W, from the robot file's motor model (`[motor]`, no idle
+    /// power: a constant would only reward ending episodes), averaged over the policy period's
+    /// physics steps: the energy a battery pays, in place of `energy`'s Σ|τq̇|.
+    pub electrical_power: f64,
 }
 
 impl Default for RewardWeights {
@@ -83,12 +88,13 @@ impl Default for RewardWeights {
             energy: 0.0,
             feet_clearance: -2.0,
             gait_schedule: 0.0,
+            electrical_power: 0.0,
         }
     }
 }
 
 /// The names of the reward terms, in the order of [`RewardWeights`] and of `train.csv`.
-pub const REWARD_TERMS: [&str; 14] = [
+pub const REWARD_TERMS: [&str; 15] = [
     "tracking_lin_vel",
     "tracking_ang_vel",
     "lin_vel_z",
@@ -103,10 +109,11 @@ pub const REWARD_TERMS: [&str; 14] = [
     "energy",
     "feet_clearance",
     "gait_schedule",
+    "electrical_power",
 ];
 
 impl RewardWeights {
-    fn as_array(&self) -> [f64; 14] {
+    fn as_array(&self) -> [f64; 15] {
         [
             self.tracking_lin_vel,
             self.tracking_ang_vel,
@@ -122,6 +129,7 @@ impl RewardWeights {
             self.energy,
             self.feet_clearance,
             self.gait_schedule,
+            self.electrical_power,
         ]
     }
 }
@@ -728,23 +736,38 @@ pub(crate) struct PdPeriod {
     pub unstable: bool,
     /// Joint torques of the last physics step.
     pub last_tau: [f64; 12],
+    /// The drives' electrical power averaged over the period's physics steps, W (0 without a
+    /// motor model).
+    pub motor_power_w: f64,
 }
 
-/// Steps the closed loop `substeps` times under the joint PD.
+/// Steps the closed loop `substeps` times under the joint PD; `motor` (the robot's motor model)
+/// charges each physics step.
 pub(crate) fn run_pd_period(
     loop_: &mut ClosedLoop,
     pd: &mut JointPd,
     command: VelocityCommand,
     substeps: usize,
+    motor: Option<&MotorModel>,
 ) -> PdPeriod {
     let mut last_tau = [0.0; 12];
+    let (mut energy_w_steps, mut n) = (0.0, 0usize);
     let (fell, unstable) = run_period(loop_, pd, command, substeps, &mut |r| {
         last_tau = flat(&r.output.torques);
+        if let Some(m) = motor {
+            energy_w_steps += m.motor_power_w(&r.state.joints.map(|_, j| j.qd), &r.output.torques);
+            n += 1;
+        }
     });
     PdPeriod {
         fell,
         unstable,
         last_tau,
+        motor_power_w: if n > 0 {
+            energy_w_steps / n as f64
+        } else {
+            0.0
+        },
     }
 }
 
@@ -808,6 +831,8 @@ pub struct ModelFreeEnv {
     last_contact: [bool; 4],
     qd_prev: [f64; 12],
     fell: bool,
+    /// The robot's motor model, for the `electrical_power` reward term.
+    motor: Option<MotorModel>,
 }
 
 /// The training model: the robot on flat ground at the training time step.
@@ -833,6 +858,14 @@ impl ModelFreeEnv {
         config: ModelFreeConfig,
     ) -> Result<Self, String> {
         config.validate().map_err(|e| e.to_string())?;
+        let motor = robot.motor_model();
+        if config.rewards.electrical_power != 0.0 && motor.is_none() {
+            return Err(format!(
+                "rewards.electrical_power = {} needs the robot's motor model, and the {} robot \
+                 file has no [motor] section",
+                config.rewards.electrical_power, robot.name
+            ));
+        }
         let sim = Simulation::with_model(model, robot).map_err(|e| e.to_string())?;
         let q0 = robot.standing_pose();
         let kin = LegKinematics::new(robot);
@@ -859,6 +892,7 @@ impl ModelFreeEnv {
             last_contact: [true; 4],
             qd_prev: [0.0; 12],
             fell: false,
+            motor,
             config,
         })
     }
@@ -1028,7 +1062,14 @@ impl Env for ModelFreeEnv {
             fell,
             unstable,
             last_tau,
-        } = run_pd_period(&mut self.loop_, &mut self.pd, self.command, self.substeps);
+            motor_power_w,
+        } = run_pd_period(
+            &mut self.loop_,
+            &mut self.pd,
+            self.command,
+            self.substeps,
+            self.motor.as_ref(),
+        );
         let dt = cfg.policy_period_s;
         let sim = self.loop_.sim();
         let state = sim.ground_truth_state();
@@ -1081,6 +1122,7 @@ impl Env for ModelFreeEnv {
             feet_clearance(&sole, &speed, cfg.clearance_height_m),
             // The phase the period just ran under (push() below advances it).
             gait_schedule(&contacts, &scheduled_stance(self.memory.clock_phase)),
+            motor_power_w,
         ];
         let mut reward = 0.0;
         for ((t, v), w) in terms.iter_mut().zip(values).zip(cfg.rewards.as_array()) {
