@@ -6,6 +6,7 @@ pub mod bench_estimator;
 #[cfg(feature = "learning")]
 pub mod bench_rl;
 pub mod bench_viewer;
+pub mod config_cmd;
 pub mod free_arg;
 #[cfg(feature = "hardware")]
 pub mod hw_cmd;

@@ -6,7 +6,8 @@ use eemp_cli::hw_cmd;
 #[cfg(feature = "learning")]
 use eemp_cli::train_cmd;
 use eemp_cli::{
-    replay_cmd, reproduce_cmd, retarget_cmd, stand_cmd, suite_cmd, sweep_cmd, teleop_cmd, walk_cmd,
+    config_cmd, replay_cmd, reproduce_cmd, retarget_cmd, stand_cmd, suite_cmd, sweep_cmd,
+    teleop_cmd, walk_cmd,
 };
 
 #[derive(Parser)]
@@ -86,6 +87,11 @@ enum Command {
         #[command(subcommand)]
         what: BenchCommand,
     },
+    /// Controller settings: `eemp config show` prints those a walk would run with.
+    Config {
+        #[command(subcommand)]
+        what: config_cmd::ConfigCommand,
+    },
     /// Print the MuJoCo model (MJCF) generated from the robot file.
     Model {
         /// Robot description (default: the shipped A1, robots/a1.toml).
@@ -154,6 +160,7 @@ fn main() {
     let result = match cli.command {
         Command::Stand(args) => stand_cmd::run(&args),
         Command::Walk(args) => walk_cmd::run(&args),
+        Command::Config { what } => config_cmd::run(&what),
         Command::Sweep(args) => sweep_cmd::run(&args),
         #[cfg(feature = "learning")]
         Command::Train(args) => train_cmd::run(&args),

@@ -41,7 +41,9 @@ fn read_variant(dir: &Path) -> Result<Variant, String> {
         ));
     }
     let label = describe_variant(&config.grid);
-    let rows = analyse_variant(&label, &loaded.rows, config.selection);
+    let robot = config.grid.robot_config()?;
+    let idle = eemp_study::sensitivity::IdleCharge::of(&robot);
+    let rows = analyse_variant(&label, &loaded.rows, config.selection, idle.as_ref());
     let short = dir
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())

@@ -112,6 +112,10 @@ pub struct MethodConfig {
     /// free gait's table. Kind eemp, gait free.
     #[serde(default)]
     pub eemp_rl: bool,
+    /// Controller settings as `key=value`, applied last (`eemp walk --set`; `eemp config
+    /// show` lists the keys).
+    #[serde(default)]
+    pub set: Vec<String>,
 }
 
 impl MethodConfig {
@@ -220,6 +224,7 @@ impl MethodConfig {
         if self.kind == "eemp" {
             d.gait = gait;
         }
+        d.set = self.set.clone();
         d
     }
 

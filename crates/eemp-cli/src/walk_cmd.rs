@@ -7,7 +7,7 @@ use eemp_rl::run::WalkDescription;
 use std::path::PathBuf;
 
 /// The options a run file replaces (clap's argument ids, the fields' names).
-pub const RUN_FILE_REPLACES: [&str; 48] = [
+pub const RUN_FILE_REPLACES: [&str; 49] = [
     "controller",
     "policy",
     "estimator",
@@ -56,6 +56,7 @@ pub const RUN_FILE_REPLACES: [&str; 48] = [
     "mpc_period",
     "robot",
     "allow_robot_mismatch",
+    "set",
 ];
 
 #[derive(clap::Args, Debug)]
@@ -118,6 +119,11 @@ pub struct WalkArgs {
     pub walk_support: crate::walk_support_arg::WalkSupportArgs,
     #[command(flatten)]
     pub mpc: crate::mpc_arg::MpcArgs,
+    /// A controller setting, KEY=VALUE (repeatable, applied last in order): dotted keys into
+    /// the settings tree (planner.*, mpc.*, swing.*, slip.*, schedule.*, filter.*), e.g.
+    /// `--set mpc.horizon=12`; `eemp config show` lists every key and its value.
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub set: Vec<String>,
     /// Rows per second in trace.csv (the simulation runs at 1 kHz; every step costs ≈ ¼ of the run).
     #[arg(long, default_value_t = 100.0)]
     pub trace_hz: f64,
@@ -185,6 +191,7 @@ impl WalkArgs {
             walk_support_margin_m: self.walk_support.walk_support_margin,
             walk_support_check: self.walk_support.check(),
             walk_support_max_speed_mps: self.walk_support.walk_support_max_speed,
+            set: self.set.clone(),
         }
     }
 }

@@ -43,6 +43,7 @@ fn config() -> SuiteConfig {
                 walk_support: None,
                 mpc_horizon: None,
                 eemp_rl: false,
+                set: Vec::new(),
             },
             MethodConfig {
                 name: "model-free RL".into(),
@@ -68,6 +69,7 @@ fn config() -> SuiteConfig {
                 walk_support: None,
                 mpc_horizon: None,
                 eemp_rl: false,
+                set: Vec::new(),
             },
         ],
         scenarios: vec![

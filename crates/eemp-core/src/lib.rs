@@ -35,6 +35,7 @@ pub mod leg_control;
 pub mod metrics;
 pub mod planner;
 pub mod robot;
+pub mod settings;
 pub mod slip;
 pub mod stand_profile;
 pub mod teleop;

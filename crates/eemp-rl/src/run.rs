@@ -20,6 +20,7 @@ use eemp_core::planner::{
     FreePairing, Gait, PlannerConfig, PlannerParams, VelocityCommand, WalkSupport,
 };
 use eemp_core::robot::RobotConfig;
+use eemp_core::settings::ControllerSettings;
 use eemp_sim::closed_loop::{Push, StateSource, StepRecord};
 use eemp_sim::sensors::SensorNoise;
 #[cfg(feature = "learning")]
@@ -264,6 +265,10 @@ pub struct WalkDescription {
     /// The walk: the commanded speed from which that check is off, m/s
     /// (`WalkSupport::max_speed_mps`; 0: none; None: the default, 0.6).
     pub walk_support_max_speed_mps: Option<f64>,
+    /// Controller settings as `key=value`, applied last, in order, over everything above
+    /// (`eemp_core::settings`: `planner.*`, `mpc.*`, `swing.*`, `slip.*`, `schedule.*`, and
+    /// `filter.*` on the kf estimator). `eemp config show` lists the keys.
+    pub set: Vec<String>,
 }
 
 impl Default for WalkDescription {
@@ -313,6 +318,7 @@ impl Default for WalkDescription {
             walk_support_margin_m: None,
             walk_support_check: None,
             walk_support_max_speed_mps: None,
+            set: Vec::new(),
         }
     }
 }
@@ -737,6 +743,7 @@ impl WalkDescription {
             spec.pushes
                 .push(Push::step(at, Vector3::new(0.0, self.push_dv_mps, 0.0)));
         }
+        apply_sets(&mut spec, &self.set, is_eemp)?;
         spec.validate().map_err(|e| e.to_string())?;
         Ok(BuiltWalk {
             robot,
@@ -778,6 +785,39 @@ impl WalkDescription {
         }
         p
     }
+}
+
+/// The controller settings a walk runs with (planner, MPC, swing, slip, schedule, filter).
+pub fn settings_of(spec: &WalkSpec) -> ControllerSettings {
+    ControllerSettings {
+        planner: spec.planner.clone(),
+        controller: spec.controller.clone(),
+        filter: spec.state_source.kf_config().cloned(),
+    }
+}
+
+/// Applies `sets` (`key=value`) to the walk's settings; a learned controller takes only the
+/// filter's (it walks with the planner and controller it was trained with).
+fn apply_sets(spec: &mut WalkSpec, sets: &[String], is_eemp: bool) -> Result<(), String> {
+    if sets.is_empty() {
+        return Ok(());
+    }
+    if let Some(s) = sets
+        .iter()
+        .find(|s| !is_eemp && !s.trim_start().starts_with("filter."))
+    {
+        return Err(format!(
+            "--set {s}: the planner's and the controller's settings are for --controller eemp \
+             (a policy walks with the ones it was trained with); only filter.* applies"
+        ));
+    }
+    let settings = settings_of(spec).with_sets(sets)?;
+    spec.planner = settings.planner;
+    spec.controller = settings.controller;
+    if let (Some(kf), Some(mine)) = (settings.filter, spec.state_source.kf_config_mut()) {
+        *mine = kf;
+    }
+    Ok(())
 }
 
 /// The trained policy a learned `--controller` runs.

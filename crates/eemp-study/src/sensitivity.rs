@@ -32,15 +32,42 @@ pub enum CotMeasure {
     Eq8,
     /// Σⱼ |τⱼq̇ⱼ|: braking costs as much as driving.
     AbsolutePower,
-    /// Σⱼ max(τⱼq̇ⱼ + k τⱼ², 0): mechanical power plus Joule heat (k = 0.3, Yang et al. 2021).
+    /// The drives' electrical power under the robot file's motor model (for the A1
+    /// Σⱼ max(τⱼq̇ⱼ + 0.3 τⱼ², 0), Yang et al. 2021): mechanical power plus Joule heat.
     Electrical,
+    /// [`CotMeasure::Electrical`] plus the electronics' idle power: what the battery pays.
+    ElectricalIdle,
+}
+
+/// What the idle power adds to a run's CoT: the robot file's idle power and weight.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct IdleCharge {
+    pub idle_power_w: f64,
+    pub weight_n: f64,
+}
+
+impl IdleCharge {
+    /// The robot's, if its file has a motor model.
+    pub fn of(robot: &eemp_core::robot::RobotConfig) -> Option<IdleCharge> {
+        robot.motor_model().map(|m| IdleCharge {
+            idle_power_w: m.idle_power_w,
+            weight_n: robot.total_mass_kg() * eemp_core::convex_mpc::model::GRAVITY,
+        })
+    }
+
+    /// The idle power's share of a run's CoT: P_idle · T / (m g ΔD).
+    fn cot(&self, row: &ResultRow) -> Option<f64> {
+        (row.distance_m > 0.0)
+            .then(|| self.idle_power_w * row.metrics_window_s / (self.weight_n * row.distance_m))
+    }
 }
 
 impl CotMeasure {
-    pub const ALL: [CotMeasure; 3] = [
+    pub const ALL: [CotMeasure; 4] = [
         CotMeasure::Eq8,
         CotMeasure::AbsolutePower,
         CotMeasure::Electrical,
+        CotMeasure::ElectricalIdle,
     ];
 
     pub fn name(self) -> &'static str {
@@ -48,6 +75,7 @@ impl CotMeasure {
             CotMeasure::Eq8 => "eq8",
             CotMeasure::AbsolutePower => "absolute",
             CotMeasure::Electrical => "electrical",
+            CotMeasure::ElectricalIdle => "electrical-idle",
         }
     }
 
@@ -55,24 +83,30 @@ impl CotMeasure {
         match self {
             CotMeasure::Eq8 => "eq. (8): positive mechanical power",
             CotMeasure::AbsolutePower => "|τ·q̇| per joint",
-            CotMeasure::Electrical => "mechanical + Joule heat 0.3·τ²",
+            CotMeasure::Electrical => "electrical, drives only (mechanical + Joule heat k·τ²)",
+            CotMeasure::ElectricalIdle => "electrical with idle power (the battery's)",
         }
     }
 
-    /// A run's CoT under this definition.
-    pub fn of(self, row: &ResultRow) -> Option<f64> {
+    /// A run's CoT under this definition (`idle`: the robot's idle charge; without it the
+    /// idle-power measure is absent).
+    pub fn of(self, row: &ResultRow, idle: Option<&IdleCharge>) -> Option<f64> {
         match self {
             CotMeasure::Eq8 => row.cot,
             CotMeasure::AbsolutePower => row.cot_abs_power,
             CotMeasure::Electrical => row.cot_electrical,
+            CotMeasure::ElectricalIdle => row
+                .cot_electrical
+                .zip(idle.and_then(|i| i.cot(row)))
+                .map(|(a, b)| a + b),
         }
     }
 
     /// The rows with `cot` replaced by this definition's (what the study selects on).
-    pub fn apply(self, rows: &[ResultRow]) -> Vec<ResultRow> {
+    pub fn apply(self, rows: &[ResultRow], idle: Option<&IdleCharge>) -> Vec<ResultRow> {
         rows.iter()
             .map(|r| ResultRow {
-                cot: self.of(r),
+                cot: self.of(r, idle),
                 ..r.clone()
             })
             .collect()
@@ -217,10 +251,11 @@ pub fn analyse_variant(
     variant: &str,
     rows: &[ResultRow],
     selection: SelectionConfig,
+    idle: Option<&IdleCharge>,
 ) -> Vec<SensitivityRow> {
     let mut out = Vec::new();
     for measure in CotMeasure::ALL {
-        let study = Study::analyse(&measure.apply(rows), selection);
+        let study = Study::analyse(&measure.apply(rows, idle), selection);
         for constant in ConstantChoice::ALL {
             out.push(SensitivityRow {
                 variant: variant.to_string(),
@@ -268,8 +303,13 @@ mod tests {
             manipulability_weight: 0.0,
             ..Default::default()
         };
-        let out = analyse_variant("v", &rows, sel);
-        assert_eq!(out.len(), 9);
+        // Idle power: 10 W over each run's window, 100 N of weight.
+        let idle = IdleCharge {
+            idle_power_w: 10.0,
+            weight_n: 100.0,
+        };
+        let out = analyse_variant("v", &rows, sel, Some(&idle));
+        assert_eq!(out.len(), 12);
         let get = |m: CotMeasure, c: ConstantChoice| {
             out.iter()
                 .find(|r| r.measure == m && r.constant == c)
@@ -286,6 +326,16 @@ mod tests {
         assert!((abs.trot_gain_pct.unwrap() - 15.0).abs() < 1e-9, "{abs:?}");
         let el = get(CotMeasure::Electrical, ConstantChoice::BestOfGrid);
         assert!((el.trot_gain_pct.unwrap() - 5.0).abs() < 1e-9, "{el:?}");
+        // With idle power every run's CoT rises by the same P·T/(W·d): the gain shrinks.
+        let r0 = &rows[0];
+        let add = 10.0 * r0.metrics_window_s / (100.0 * r0.distance_m);
+        assert_eq!(idle.cot(r0), Some(add));
+        let withidle = get(CotMeasure::ElectricalIdle, ConstantChoice::BestOfGrid);
+        assert!(
+            withidle.trot_gain_pct.unwrap() < el.trot_gain_pct.unwrap(),
+            "{withidle:?}"
+        );
+        assert!(withidle.trot_gain_pct.unwrap() > 0.0);
         // Table II is A: the same as the best constant here; among the table's entries the
         // best is A too.
         assert_eq!(get(CotMeasure::Eq8, ConstantChoice::TableII), f);
