@@ -212,6 +212,7 @@ impl Scene {
             reference: &self.reference,
             feet_world: &self.feet,
             contacts: &self.contacts,
+            heat: None,
         }
     }
 }

@@ -14,8 +14,8 @@ pub struct MpcArgs {
     /// raises it).
     #[arg(long, conflicts_with = "adapt_friction")]
     pub no_adapt_friction: bool,
-    /// Slip handling on (the default for every gait since 2026-12-06, so this only restates
-    /// it; the walk's runs below 0.6 m/s, above which its landing feet skid on any floor:
+    /// Slip handling on (the default for every gait, so this only restates it; the walk's
+    /// runs below 0.6 m/s, above which its landing feet skid on any floor:
     /// `SlipConfig::default_for`, `--slip-max-speed`).
     #[arg(long)]
     pub adapt_friction: bool,

@@ -1,8 +1,9 @@
 //! `eemp reproduce`: the whole study from `reproduce.toml`, stage by stage (each resumable,
-//! skipped when its manifest says it is up to date), and `--check` of the shipped artifacts.
+//! skipped when its manifest says it is up to date), the experiments on request, and `--check`
+//! of the shipped artifacts.
 
 use eemp_study::pipeline::{
-    check_stage, hash_all, parse_shard, Action, Manifest, Pipeline, Stage, StageCheck,
+    check_stage, hash_all, parse_shard, Action, Manifest, Pipeline, Stage, StageCheck, StageKind,
 };
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -18,10 +19,16 @@ pub struct ReproduceArgs {
     /// artifacts in place; a new folder gets a copy of the configs first.
     #[arg(long, required_unless_present_any = ["check", "list", "record", "write_report"])]
     pub out: Option<PathBuf>,
-    /// Only these stages (repeatable), in pipeline order; artifacts of earlier stages they read
-    /// are copied from the repository when the root has none.
+    /// Only these stages (repeatable; of the study or experiments), in pipeline order; artifacts
+    /// of earlier stages they read are copied from the repository when the root has none.
+    /// Without it: the study's stages (`kind = "study"`), with --experiments all of them.
     #[arg(long = "stage", value_name = "NAME")]
     pub stages: Vec<String>,
+    /// Run the experiments too (the stages with `kind = "experiment"`: earlier policy variants,
+    /// ablations), after the study's stages they follow in the pipeline. --check, --list and
+    /// --record cover every stage without it.
+    #[arg(long, visible_alias = "all", conflicts_with = "stages")]
+    pub experiments: bool,
     /// The same pipeline at a small scale (short sweeps and trainings, one seed, short runs):
     /// checks that it works end to end; its manifests say `quick = true`.
     #[arg(long)]
@@ -72,7 +79,12 @@ pub fn run(args: &ReproduceArgs) -> Result<bool, String> {
         .filter(|p| !p.as_os_str().is_empty())
         .unwrap_or(Path::new("."))
         .to_path_buf();
-    let stages = pipeline.select(&args.stages).map_err(|e| e.to_string())?;
+    // Running regenerates the study unless told otherwise; looking (--check, --list, --record)
+    // covers every stage.
+    let every_stage = args.experiments || args.check || args.list || args.record;
+    let stages = pipeline
+        .select(&args.stages, every_stage)
+        .map_err(|e| e.to_string())?;
     let shard = args.shard.as_deref().map(parse_shard).transpose()?;
     if args.merge_shards == Some(0) {
         return Err("--merge-shards 0 is out of range: allowed ≥ 1".into());
@@ -124,6 +136,22 @@ pub fn run(args: &ReproduceArgs) -> Result<bool, String> {
         }
     }
     prepare_root(&root, &repo, &pipeline, &stages)?;
+    if args.stages.is_empty() {
+        let experiments = pipeline.stages.iter().filter(|s| !s.is_study()).count();
+        let (what, more) = match (args.experiments, experiments) {
+            (true, _) => ("the study and the experiments", String::new()),
+            (false, 0) => ("the study", String::new()),
+            (false, n) => (
+                "the study",
+                format!("; --experiments adds the {n} experiments"),
+            ),
+        };
+        println!(
+            "{what}: {} stage(s), ≈ {:.1} h on 2 cores{more}",
+            stages.len(),
+            pipeline.minutes_2_cores(args.experiments) / 60.0
+        );
+    }
     let mut timings = Vec::new();
     for stage in &stages {
         if let Some((k, n)) = shard {
@@ -333,20 +361,39 @@ fn list(pipeline: &Pipeline, stages: &[&Stage]) {
     for s in stages {
         let time = s
             .minutes_2_cores
-            .map(|m| format!(" (≈ {m:.0} min on 2 cores)"))
+            .map(|m| format!(", ≈ {m:.0} min on 2 cores"))
             .unwrap_or_default();
-        println!("{}{time}: {}", s.name, s.about);
+        println!("{} ({}{time}): {}", s.name, s.kind().name(), s.about);
         for a in s.actions(false, None) {
             println!("    {}", a.display());
         }
         println!("    makes: {}", s.outputs.join(", "));
     }
-    let total: f64 = pipeline
-        .stages
-        .iter()
-        .filter_map(|s| s.minutes_2_cores)
-        .sum();
-    println!("all stages: ≈ {:.1} h on 2 cores", total / 60.0);
+    let count = |kind: Option<StageKind>| {
+        pipeline
+            .stages
+            .iter()
+            .filter(|s| kind.is_none_or(|k| s.kind() == k))
+            .count()
+    };
+    for (what, experiments, n) in [
+        (
+            "the study (eemp reproduce)",
+            false,
+            count(Some(StageKind::Study)),
+        ),
+        (
+            "with the experiments (eemp reproduce --experiments)",
+            true,
+            count(None),
+        ),
+    ] {
+        let m = pipeline.minutes_2_cores(experiments);
+        println!(
+            "{what}: {n} stages, {m:.0} min ≈ {:.1} h on 2 cores",
+            m / 60.0
+        );
+    }
 }
 
 fn check(root: &Path, repo: &Path, stages: &[&Stage], strict: bool) -> Result<bool, String> {

@@ -37,7 +37,20 @@ pub fn write_report(dir: &Path, tables_out: Option<&Path>) -> Result<Vec<String>
         );
     }
     let sessions = load_sessions(dir).map_err(|e| e.to_string())?;
-    let study = Study::analyse(&loaded.rows, config.selection);
+    // The selection's objective: the rows' CoT is its definition's from here on (tables,
+    // figures and report).
+    let robot = config.grid.robot_config()?;
+    let idle = eemp_study::sensitivity::IdleCharge::of(&robot);
+    let objective = config.selection.objective;
+    if objective != eemp_study::config::Objective::Eq8 && robot.motor_model().is_none() {
+        return Err(format!(
+            "selection.objective = {objective:?} needs the robot's motor model, and the {} \
+             robot file has no [motor] section",
+            robot.name
+        ));
+    }
+    let rows = objective.measure().apply(&loaded.rows, idle.as_ref());
+    let study = Study::analyse(&rows, config.selection);
     let mut written: Vec<String> = Vec::new();
     let mut write_tables = |to: &Path| {
         let w = report::write_tables(dir, to, &study, &config.grid).map_err(|e| e.to_string())?;

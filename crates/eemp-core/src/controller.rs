@@ -126,6 +126,8 @@ pub struct LocomotionController {
     last_solve_time_s: Option<f64>,
     last_stance: LegMap<bool>,
     friction: FrictionAdapter,
+    /// The robot's joint heat coefficients (W/(N·m)²) when the MPC weighs heat.
+    heat_coefficients: Option<[f64; 3]>,
 }
 
 impl LocomotionController {
@@ -140,7 +142,25 @@ impl LocomotionController {
                     .unwrap_or(crate::slip::CAUTIOUS_START),
             );
         }
+        if config.mpc.weight_heat.is_none() {
+            config.mpc.weight_heat = Some(robot.control.mpc_weight_heat.unwrap_or(0.0));
+        }
         config.validate()?;
+        let weight_heat = config.mpc.weight_heat.unwrap_or(0.0);
+        let heat_coefficients = match (weight_heat > 0.0, robot.motor_model()) {
+            (false, _) => None,
+            (true, Some(m)) => Some(m.heat_coefficient_w_per_nm2),
+            (true, None) => {
+                return Err(ConfigError::Invalid {
+                    name: "mpc.weight_heat".into(),
+                    message: format!(
+                        "{weight_heat} weighs the motors' heat, and the {} robot file has no \
+                         [motor] section to say what it is",
+                        robot.name
+                    ),
+                })
+            }
+        };
         let body = robot.composite_body(&robot.standing_pose());
         Ok(LocomotionController {
             kinematics: LegKinematics::new(robot),
@@ -150,6 +170,7 @@ impl LocomotionController {
             last_solve_time_s: None,
             last_stance: LegMap::splat(false),
             friction: FrictionAdapter::new(config.slip.clone(), config.mpc.friction_coefficient)?,
+            heat_coefficients,
             config,
         })
     }
@@ -202,11 +223,20 @@ impl LocomotionController {
         let mut mpc_event = None;
         if due {
             let started = std::time::Instant::now();
+            let heat = self.heat_coefficients.map(|k| {
+                LegMap::from_fn(|leg| {
+                    let j = self
+                        .kinematics
+                        .foot_jacobian_body(leg, &state.joints[leg].q);
+                    crate::convex_mpc::heat_matrix(&j, &state.body.r_world_body, &k)
+                })
+            });
             let solution = self.mpc.solve(&MpcInput {
                 body: &state.body,
                 reference: &plan.body_horizon,
                 feet_world: &plan.feet_horizon_world,
                 contacts: &plan.contacts_horizon,
+                heat: heat.as_ref(),
             });
             mpc_event = Some(MpcEvent {
                 status: solution.status.clone(),

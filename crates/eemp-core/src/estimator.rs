@@ -140,11 +140,11 @@ pub struct KfConfig {
     /// after a jump, when two or more fully trusted legs agree on a horizontal jump of at least
     /// `velocity_jump_mps` and every other one reads, along it, between this fraction of it and
     /// `1 − velocity_jump_agreement` of it, the group's jump is taken and the others are not
-    /// read until they agree with the estimate again or their foot lifts. (A walk at 0.1 m/s
-    /// pushed 0.5 m/s sideways on a 0.3 floor: the two left feet held and read 0.38–0.44 m/s,
-    /// the right ones slid and read 0.00–0.25, and the filter followed the mix to 0.24 m/s
-    /// against 0.43 when a held foot lifted; the walk fell.) Feet that slip while the others hold read
-    /// none of the change, so that case is left to the leg gate. 0 turns it off.
+    /// read until they agree with the estimate again or their foot lifts. (Following the mix of
+    /// held and dragged feet, the estimate would lag the pushed trunk by a large share of the
+    /// push, and the MPC cannot brake a velocity it does not see.) Feet that slip while the
+    /// others hold read none of the change, so that case is left to the leg gate. 0 turns it
+    /// off.
     pub velocity_jump_dragged_fraction: f64,
     /// A planned stance leg whose velocity reading disagrees by more than this, m/s, both with
     /// the estimate and with every other stance leg (trust ≥ ½) is a foot off the ground or

@@ -40,6 +40,10 @@ pub struct ControlDefaults {
     /// not give one: a cautious start for a robot whose first stances on a low floor throw it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub slip_initial_friction: Option<f64>,
+    /// The MPC's weight on the motors' heat (`mpc.weight_heat`, 1/W) when a run does not give
+    /// one: the battery-aware cost for a robot whose `[motor]` model it was tuned with.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mpc_weight_heat: Option<f64>,
 }
 
 impl ControlDefaults {
@@ -357,6 +361,15 @@ impl RobotConfig {
             check_range("control.slip_initial_friction", mu, lo, hi)?;
         }
         check_range("simulation.floor_friction", s.floor_friction, 0.0, 5.0)?;
+        if let Some(w) = self.control.mpc_weight_heat {
+            check_range("control.mpc_weight_heat", w, 0.0, 1.0)?;
+            if w > 0.0 && self.motor.is_none() {
+                return Err(ConfigError::Invalid {
+                    name: "control.mpc_weight_heat".into(),
+                    message: format!("{w} weighs the motors' heat: it needs a [motor] section"),
+                });
+            }
+        }
         check_positive("trunk.mass_kg", self.trunk.mass_kg)?;
         let l = &self.leg;
         for (name, v) in [
@@ -405,6 +418,28 @@ impl RobotConfig {
             m.resolve()?;
         }
         Ok(())
+    }
+
+    /// The body heights X_z the legs reach, m: from half the leg's length (a deep crouch) to the
+    /// stretched leg less 2 cm (the knee must stay bent to steer the foot), foot radius added.
+    pub fn body_height_range_m(&self) -> [f64; 2] {
+        let l = self.leg.thigh_length_m + self.leg.calf_length_m;
+        [
+            0.5 * l + self.leg.foot_radius_m,
+            l - 0.02 + self.leg.foot_radius_m,
+        ]
+    }
+
+    /// Checks that body height `h` (named `name`) is within [`Self::body_height_range_m`].
+    pub fn check_body_height(&self, name: &str, h: f64) -> Result<(), ConfigError> {
+        let [lo, hi] = self.body_height_range_m();
+        check_range(name, h, lo, hi).map_err(|e| ConfigError::Invalid {
+            name: name.to_string(),
+            message: format!(
+                "{e} (the {} robot's legs reach [{lo:.3}, {hi:.3}] m)",
+                self.name
+            ),
+        })
     }
 
     /// Joint range [min, max] of joint `j` (0 abduction, 1 thigh, 2 calf) of `leg`, rad.

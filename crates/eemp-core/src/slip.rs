@@ -1,18 +1,16 @@
 //! The floor's friction from slips: a stance foot that slides says the floor gives less than the
 //! MPC's friction pyramid assumes, so the MPC is told a lower friction coefficient; a foot that
 //! holds a steeper force than the coefficient raises it again. On by default for every gait
-//! (issue 22; the walk's gates its slides and runs below 0.6 m/s: see
+//! (issue 22; the walk gates its slides and runs below 0.6 m/s: see
 //! [`SlipConfig::default_for`]; `controller.slip.adapt_friction`, `eemp walk --no-adapt-friction`
-//! turns it off, `--adapt-friction` on). The
-//! measurements below the rule were made with the earlier form (no refractory time, no raise
-//! on hold), which traded push recovery for slippery floors.
+//! turns it off, `--adapt-friction` on). How each rule was traced and chosen, and the variants
+//! not kept, are in `docs/notebook/2026-12-04-slippery-ground.md`.
 //!
 //! Why: the MPC's pyramid (|f_x|, |f_y| ≤ μ f_z with μ = 0.6 by default) lets its corners reach
 //! √2·μ = 0.85, and the forces the legs really put on the ground also carry the leg's own
-//! dynamics, so on a 0.3 floor stance feet slide. (The free gait's falls there within 2 s,
-//! ground truth, 0.1–0.8 m/s, came mostly from its lone swings: its diagonal pairing,
-//! `planner::FreePairing`, walks that floor without the adapter; the measurements below are
-//! with the earlier swing rule.) A robot does not know the floor beforehand; it feels the slip.
+//! dynamics, so on a 0.3 floor stance feet slide. (The free gait's lone swings are a cause of
+//! falls there of their own, which its diagonal pairing, `planner::FreePairing`, removes.) A
+//! robot does not know the floor beforehand; it feels the slip.
 //!
 //! Rule: a foot in planned stance for at least [`SlipConfig::settle_s`] and loaded by the MPC
 //! whose horizontal speed, relative to the most planted loaded foot, exceeds
@@ -23,61 +21,44 @@
 //! of the floor's friction: feet slid while asked for less than 0.3 on the 0.8 floor, and
 //! lowering towards that ratio made the free gait at 0.1 m/s track worse.)
 //!
-//! Measured (EEMP with its tables, 20 s): with the adapter the free gait walks the 0.3 floor at
-//! 0.3 and 0.5 m/s on ground truth (seed 1; it fell at 1.8 and 7.6 s without; at 0.1 m/s it
-//! falls either way). Under the pushes scenario's 0.5 m/s side pushes the feet slide, the
-//! coefficient stays low, and gaits fall that walk without it: in the robustness suite (filter,
-//! 0.3 m/s, 3 seeds) the free gait in 2 of 3 runs (the trot in none; with the pairing and the
-//! current filter, once in 3 under the force pulses and never under the steps); on ground truth, seed 1,
-//! the trot at 0.3 m/s (19.8 s) and the walk at 0.1 m/s (16.3 s). A floor of 0.25 instead of
-//! 0.15 (and a 5× faster recovery) kept most pushes but lost the slippery floor again. On the
-//! normal floor (0.8) feet slide a little too and lower the coefficient: the free gait at
-//! 0.1 m/s then tracks worse (seed 1: RMSE 0.074 against 0.053 m/s, CoT 0.52 against 0.43);
-//! at 0.3–0.8 m/s tracking and CoT stay within a few percent.
+//! What it trades: a slide lowers the coefficient whatever made the foot slide, so a side push,
+//! which slides feet on any floor, leaves the MPC braking more gently than the floor allows
+//! until the coefficient comes back; `raise_on_hold` (below) brings it back after a push. A
+//! higher floor for the coefficient keeps more pushes but loses the slippery floor, so the floor
+//! stays low. On the normal floor feet slide a little too and lower the coefficient, so a slow
+//! free gait tracks a little worse; at walking speeds tracking and CoT stay within a few percent.
 //!
-//! The ratchet, and the rule since (issue 22, 2026-12-05). `raise_on_hold` raises the
-//! coefficient to the *norm* of the tangential/normal ratio the MPC asked, but the MPC's pyramid
-//! lets that norm reach √2·μ̂ at its corners, and what the MPC asks is not what the foot puts on
-//! the ground. So on a 0.3 floor the coefficient climbed above the floor (the trot at 0.3 m/s
-//! under the first 0.5 m/s side push, ground truth: 0.15 at the push, 0.28, then 0.37 at the
-//! next touchdown, whose foot then slid under the trunk: the fall at 3.4 s). Two changes, both
-//! defaults now:
+//! Raising on hold without a ratchet. `raise_on_hold` raises the coefficient to the *norm* of
+//! the tangential/normal ratio the MPC asked, but the MPC's pyramid lets that norm reach √2·μ̂
+//! at its corners, and what the MPC asks is not what the foot puts on the ground. Unchecked,
+//! holds after a slip lift the coefficient above the floor that just let a foot slide, and the
+//! next touchdown's foot slides under the trunk. Two rules stop that:
 //! - after a slip a hold raises the coefficient to at most [`SlipConfig::hold_cap_after_slip`]
 //!   (0.95) × the coefficient at that slip, the cap recovering at
-//!   [`SlipConfig::hold_cap_recovery_per_s`] (0.05/s);
+//!   [`SlipConfig::hold_cap_recovery_per_s`] (0.05/s): a slip is firmer evidence than a force the
+//!   MPC asked for;
 //! - a cautious start: the coefficient starts at [`CAUTIOUS_START`] (0.3) unless the run or the
 //!   robot file gives another, and feet that hold raise it.
 //!
-//! Chosen on seeds the suites do not use (11–16; trot and free gait with their tables, filter,
-//! 20 s, 0.1 / 0.3 / 0.5 m/s; floors 0.2, 0.25, 0.8 → 0.2 → 0.8, pushes on 0.8 and on 0.3, flat):
-//! falls in 216 runs, the earlier rule 54, the cap alone 34, the cap with the cautious start 27
-//! (with the cap recovering at 0.02/s: 22, at 0.1/s: 28; cap 0.9: 29; start 0.35: 27; a 0.05 s
-//! refractory time: 35; floor 0.2: 29, 0.18: 25; differences of a few runs are within what
-//! other seeds move). Not
-//! counting the stance a leg starts in (the robot settling) kept the flat floor exactly but
-//! fell 42 times: on a slippery floor those first slides are the first evidence. With a fixed
-//! `--mpc-friction 0.2` and no adapter (an oracle for a 0.2–0.3 floor) 5 of 36 runs fell on
-//! the 0.3 floor with pushes and the 0.2 floor (seeds 1–3), so part of what is left is not the
-//! estimate. Cost on the flat floor (slip-flat-check, seeds 1–3): the trot at 0.3 m/s tracks
-//! worse (velocity RMSE 0.034 → 0.041 m/s; two of three seeds see feet slide while settling,
-//! at 0.04 s, so the coefficient drops to 0.21 / 0.15 and the placement ellipses shrink into
-//! that cone for the first 1–2 s, after which the trot keeps a gait cycle with more lateral
-//! sway; `docs/comparison-and-robustness.md`); over seeds 11–16 the same case went
-//! 0.039 → 0.038.
+//! These values were chosen on seeds the suites do not use, so that the suites test them rather
+//! than fit them; nearby values moved the falls by no more than other seeds do. The stance a leg
+//! starts in counts too: on a slippery floor the slides while the robot settles are the first
+//! evidence. Part of what falls remain is not the estimate: an MPC held at a coefficient that
+//! fits the floor, with no adapter, falls on those floors too. The cost on the flat floor: when
+//! the trot's feet slide while it settles, the coefficient drops and the placement ellipses
+//! shrink into that cone for the first 1–2 s, after which the trot keeps a gait cycle with more
+//! lateral sway and tracks slightly worse (`docs/comparison-and-robustness.md`).
 //!
-//! Slowing down on a slippery floor (2026-12-06): once the coefficient is below
+//! Slowing down on a slippery floor: once the coefficient is below
 //! [`SlipConfig::slow_below_friction`] the command's speed is capped at
 //! [`SlipConfig::slow_speed_mps`] (0.3 m/s) until the coefficient is back at
-//! [`SlipConfig::slow_release_friction`] (0.25), as a person slows down on ice. The walk's
-//! default (0.18 then; 0.205 since its floor is 0.2, [`WALK_MIN_FRICTION`]): at 0.5 m/s it fell
-//! on the 0.2 and 0.25 floors and under 0.5 m/s pushes on the 0.3 floor in 7 of 9 runs (filter,
-//! seeds 1–3), its coefficient at its floor of 0.15 then within 2 s and the falls at 5–6 s;
-//! capped, it walked 24 of 24 on those floors and 0.8 → 0.2 → 0.8 (seeds 11–16). On the 0.8
-//! floor its coefficient never went below 0.21 at 0.45–0.59 m/s (filter and ground truth,
-//! seeds 4–9, 48 runs: no cap, so no cost). Not for the trot and the free gait:
-//! their feet slide while the robot settles, the coefficient drops to its floor on the 0.8
-//! floor too, and the cap then took 6–12 % of a flat run at 0.5 m/s (2 of 6 seeds, RMSE up to
-//! 0.016 m/s worse).
+//! [`SlipConfig::slow_release_friction`] (0.25), as a person slows down on ice. The walk uses it
+//! ([`WALK_SLOW_BELOW_FRICTION`], just above its floor [`WALK_MIN_FRICTION`]): at 0.5 m/s on a
+//! slippery floor its coefficient reaches its floor seconds before it would fall, in time to slow
+//! down, and on the normal floor it stays above the threshold, so the cap costs nothing there.
+//! Not for the trot and the free gait: they walk those floors at speed, and their feet slide
+//! while the robot settles, so the coefficient drops to its floor on the normal floor too and
+//! the cap would slow and worsen their flat runs.
 
 use crate::config_error::{check_range, ConfigError};
 use crate::leg::{Leg, LegMap};
@@ -91,8 +72,8 @@ pub struct SlipConfig {
     pub adapt_friction: bool,
     /// Horizontal ground speed above which a stance foot slides, m/s (the Kalman filter's
     /// velocity error is ≈ 0.03 m/s; a planted foot on the A1's floor moves < 0.02 m/s). Low, so
-    /// a slip is caught at its start: a 0.15 threshold caught the free gait's first slips on a
-    /// 0.3 floor too late (it fell at 1.8 s at 0.3 m/s).
+    /// a slip is caught at its start: with a threshold well above those errors the first slips on
+    /// a slippery floor are seen too late to keep the robot up.
     pub speed_threshold_mps: f64,
     /// Only a foot the MPC asks to carry at least this normal force counts, N (an unloaded foot
     /// that drags, as the walk's rear feet do before lift-off, says nothing about the floor).
@@ -108,9 +89,9 @@ pub struct SlipConfig {
     /// After a backoff, further slips within this time do not lower the coefficient again, s:
     /// one event (a push, a stumble, the first steps on ice) slides several feet within a few
     /// tens of milliseconds, and counting each cut the coefficient to its floor at once. 0 by
-    /// default: with 0.3 s the coefficient came down too slowly on a 0.2 floor (the trot and
-    /// the free gait fell at 1.3–1.6 s, filter, 0.3 m/s, seed 1); raise_on_hold brings it back
-    /// after a push instead.
+    /// default: on a slippery floor the robot falls within seconds, and a refractory time brings
+    /// the coefficient down too slowly for that; raise_on_hold brings it back after a push
+    /// instead.
     pub refractory_s: f64,
     /// A loaded stance foot that holds (no slide, relative or over the ground) while the MPC
     /// asks it for a tangential/normal force ratio above the coefficient shows the floor gives
@@ -148,11 +129,10 @@ pub struct SlipConfig {
     /// A hold raises the coefficient to this fraction of the tangential/normal ratio the MPC
     /// asked of the foot (1: the ratio itself, `Default` and the walk's; 0.8 for the trot and
     /// the free gait, [`SlipConfig::default_for`]). What the MPC asks is not what the foot
-    /// applies, and the pyramid's corners let the asked ratio reach √2·μ̂. Before the capture
-    /// step was bounded (`planner.touchdown_friction_factor`) 0.8 was within seed noise of 1;
-    /// with it, under 0.5 m/s side pushes on a 0.3 floor (trot and free gait, filter, 0.1 /
-    /// 0.3 / 0.5 m/s, seeds 1–3 and 11–16, 54 runs) falls were 10 with 1, 4 with 0.9 and 0.8,
-    /// 6 with 0.7, 7 with 0.6 (`HOLD_RAISE_FRACTION_TROT_FREE`).
+    /// applies, and the pyramid's corners let the asked ratio reach √2·μ̂, so a hold is weaker
+    /// evidence than the ratio it was asked for; the discount matters once the capture step is
+    /// bounded by the coefficient (`planner.touchdown_friction_factor`, see
+    /// [`HOLD_RAISE_FRACTION_TROT_FREE`]).
     pub hold_raise_fraction: f64,
     /// Slip handling runs only while the planner's reference speed (its trunk reference at the
     /// first horizon step) is below this, m/s; from it on the MPC keeps its nominal coefficient
@@ -174,54 +154,45 @@ pub struct SlipConfig {
 
 /// The coefficient slip handling starts from when neither the run (`slip.initial_friction`)
 /// nor the robot file (`control.slip_initial_friction`) gives one: the robot does not know the
-/// floor, so it starts at a coefficient a 0.3 floor gives and lets feet that hold raise it
-/// (issue 22: with it and the hold cap the trot and the free gait fell in 27 of 216 runs on
-/// slippery floors and under pushes, seeds 11–16, against 34 with the cap and the nominal start
-/// and 54 with neither; see the module docs).
+/// floor, so it starts at a coefficient a 0.3 floor gives and lets feet that hold raise it. A
+/// start at the nominal would meet a slippery floor with a pyramid wider than the floor's cone
+/// until the first slides; on a grippy floor holds raise it within a few solves (see the module
+/// docs).
 pub const CAUTIOUS_START: f64 = 0.3;
 
-/// The trot's and the free gait's [`SlipConfig::hold_raise_fraction`]. With the capture step
-/// bounded by the friction coefficient (`planner.touchdown_friction_factor`), the seeds 11–16 set
-/// (trot and free gait with their tables, filter, 20 s, 0.1 / 0.3 / 0.5 m/s on the 0.2, 0.25,
-/// 0.8 → 0.2 → 0.8 floors, 0.5 m/s pushes on the 0.8 and 0.3 floors and the flat floor; 216
-/// runs) fell 3 times with it against 11 with 1 (27 before the bound); flat-floor CoT at 0.3 and
-/// 0.5 m/s within 0.0005 of the earlier rule's.
+/// The trot's and the free gait's [`SlipConfig::hold_raise_fraction`]. Their capture step is
+/// bounded by the friction coefficient (`planner.touchdown_friction_factor`), so a coefficient a
+/// hold over-raises lets a pushed robot step out further than a slippery floor can brake. 0.8
+/// discounts the asked ratio (not what the foot applied, up to √2·μ̂ at the pyramid's corners)
+/// and kept the most pushes on a slippery floor of the fractions tried, with the flat floor's
+/// CoT unchanged.
 pub const HOLD_RAISE_FRACTION_TROT_FREE: f64 = 0.8;
 
 /// The walk's [`SlipConfig::max_speed_mps`]: above it its landing feet skid on any floor.
 pub const WALK_MAX_SPEED_MPS: f64 = 0.6;
 
 /// The speed cap on a floor found slippery ([`SlipConfig::slow_speed_mps`]). The walk at 0.5 m/s
-/// fell in 7 of 9 runs on the 0.2 and 0.25 floors and under 0.5 m/s pushes on the 0.3 floor
-/// (filter, seeds 1–3); commanded 0.4 m/s it fell under those pushes in 2 of 6 (seeds 11–16,
-/// which the suites do not use), commanded 0.3 m/s in none. (The paper's walk is stable up to
-/// 0.4 m/s.)
+/// does not stay up on the slippery floors and under side pushes there; at 0.4 m/s (the paper's
+/// walk is stable up to 0.4 m/s) it still lost some of those pushes, at 0.3 m/s none.
 pub const SLIPPERY_SPEED_MPS: f64 = 0.3;
 
 /// The walk's [`SlipConfig::slow_below_friction`], just above its floor
-/// ([`WALK_MIN_FRICTION`]). On the 0.8 floor at 0.45–0.59 m/s the walk's coefficient never went
-/// below 0.21 (filter and ground truth, seeds 4–9: one slip from the cautious start's 0.3); on
-/// the 0.2 and 0.25 floors at 0.5 m/s it reached its floor within 2 s, 3–4 s before the falls.
-/// (0.18 until the floor was raised to 0.2.)
+/// ([`WALK_MIN_FRICTION`]). On the normal floor, even at 0.45–0.59 m/s, the walk's coefficient
+/// stays above it (one slip from the cautious start's 0.3 leaves 0.21), so the cap costs nothing
+/// there; on a slippery floor at 0.5 m/s the coefficient reaches its floor seconds before the
+/// walk would fall, in time to slow down.
 pub const WALK_SLOW_BELOW_FRICTION: f64 = 0.205;
 
 /// The walk's [`SlipConfig::min_friction`] (the trot's and the free gait's stay at 0.15). The
 /// walk moves one leg at a time, so a side push that meets a leg lifting on its side leaves the
 /// trunk over one diagonal until that foot lands; a 0.5 m/s velocity step slides every foot, and
-/// those slides took the coefficient to 0.15 on a 0.3 floor, the MPC then braking at half of
-/// what the floor gives. Under 0.5 m/s side pushes on the 0.3 floor at 0.1 m/s (filter, seed 1,
-/// the first push over 20 phases of a walk cycle, `scripts/push-phases.sh`) the walk fell in 7
-/// of 20 with 0.15 and in 3 with 0.2 (0.25: 3; without slip handling but the MPC at a fixed
-/// 0.25: 2, at 0.3: 5). The same 20 phases with other levers (falls): a 0.1 or 0.3 s refractory
-/// time 8 and 6; slides asked for less than ½ or 0.8 of the coefficient not counted 6 and 7;
-/// not lifting a leg on the side the trunk is pushed to (swinging the next one of the other
-/// side, or none) 9 and 10; the trot's diagonal pairs while pushed 18; ΔT 0.2 s 5. On a whole
-/// 0.15 floor (below the issue's floors; filter, seeds 1–3) the walk falls at 0.1 m/s and walks
-/// at 0.3 m/s with either floor. Not for the trot and the free gait: with 0.2 the free gait fell
-/// in 1 of the 20 pushed phases at 0.1 m/s (6 with 0.15), but on the 0.15 floor the trot fell in
-/// 6 of 6 runs at 0.1 and 0.3 m/s and the free gait in 4 of 6, against none with 0.15. (Letting
-/// the coefficient under 0.2 only 0.3 or 0.6 s after it first reached it did not keep those
-/// either, and cost the pushes: walk 6 and 5, free gait 5 and 2 of 20.)
+/// those slides take the coefficient to 0.15 on a 0.3 floor, the MPC then braking at half of
+/// what the floor gives. A floor of 0.2 keeps more of that braking, and kept more pushes than
+/// the other levers tried (a refractory time, not counting lightly asked slides, not lifting a
+/// leg on the pushed side, the trot's diagonal pairs while pushed, a shorter MPC step). Not for
+/// the trot and the free gait: on a floor as slippery as 0.15 a floor of 0.2 leaves their
+/// pyramid wider than the floor's cone and they fall, where with 0.15 they walk (history:
+/// docs/notebook/).
 pub const WALK_MIN_FRICTION: f64 = 0.2;
 
 impl Default for SlipConfig {
@@ -254,20 +225,15 @@ impl SlipConfig {
     /// The default for a gait: on for every gait; the walk's with gates of its own and below
     /// 0.6 m/s. The walk's slides must also move over the ground and stay on the floor
     /// (`require_ground_speed`, `max_vertical_speed_mps` 0.2 m/s). Without those two its feet
-    /// read as sliding on the 0.8 floor at 0.5 m/s (late touchdowns, lift-offs, the anchor's own
-    /// reading): the coefficient sat at its floor and CoT rose 8 % (0.725 against 0.673 off;
-    /// filter, seeds 11–16). With them it is 0.607, and the walk fell in 23 of 108 runs on the
-    /// slippery floors and pushes against 26 without them and 34 off. Above 0.6 m/s
+    /// read as sliding on the normal floor at 0.5 m/s (late touchdowns, lift-offs, the anchor's
+    /// own reading): the coefficient sits at its floor and CoT rises 8 %. Above 0.6 m/s
     /// (`max_speed_mps`) the walk's landing feet really slide on a grippy floor (≈ 1 m/s at
-    /// touchdown at 0.7 and 1.0 m/s), which no gate here tells from a slippery floor: with slip
-    /// handling throughout, the coefficient fell to 0.15 and the walk fell in 4 of 4 runs at
-    /// each speed (flat floor, ground truth, seeds 0–3), against 0 of 4 off; with the limit it
-    /// walks 8 of 8 (CoT 0.587–0.605 against 0.587–0.596 off). (Keeping the detector's
-    /// coefficient but ignoring slides above the limit still fell 3 of 4 at 1.0 m/s.) Until
-    /// 2026-12-06 the walk's default was off. The trot and the free gait keep both gates off:
-    /// each alone raised their falls under pushes on the 0.3 floor (ground speed: 53, vertical
-    /// speed: 50, both: 56 of 72 runs against 44; seeds 11–22), where slides of feet that also
-    /// move vertically are real. The walk also slows to 0.3 m/s on a floor found slippery
+    /// touchdown at 0.7 and 1.0 m/s), which no gate here tells from a slippery floor: slip
+    /// handling there takes the coefficient to its floor and the walk falls, so above the limit
+    /// the MPC keeps its nominal (ignoring those slides alone while keeping the lowered
+    /// coefficient is not enough). The trot and the free gait keep both gates off: under pushes
+    /// on a slippery floor the slides of their feet that also move vertically are real, and
+    /// either gate cost them pushes. The walk also slows to 0.3 m/s on a floor found slippery
     /// (`slow_below_friction` 0.205, see the module docs); the trot and the free gait do not. The
     /// walk's coefficient never goes below 0.2 ([`WALK_MIN_FRICTION`]), the others' below 0.15.
     pub fn default_for(gait: crate::planner::gait::Gait) -> Self {

@@ -15,24 +15,24 @@
 //! episodes for every candidate of a generation (common random numbers), new ones every
 //! generation. The budget is the config's `total_env_steps` counted in decisions, as for PPO.
 //!
-//! Per entry (`cmaes.per_entry`, issue 20, 2026-12-06): one 5-dimensional search per table
+//! Per entry (`cmaes.per_entry`, issue 20): one 5-dimensional search per table
 //! entry instead of one over all of them, each on episodes commanded at that entry's speed
 //! throughout, with the budget split evenly between the entries. The joint search gives each
 //! entry only the few command segments that fall near its speed, on a 5 × entries-dimensional
 //! covariance; the entries are independent under the nearest-entry look-up (but for the first
 //! 0.5 s of every episode, commanded 0 and so walked on the first entry as kept so far), so
 //! searching them apart loses little. Each entry searches until its share of the budget is used
-//! (the last generation may overrun it), and the validation episodes come on top of the budget. Probing the table by hand (one parameter of one entry moved by half its
-//! bound, ground truth, seeds 1–3) found corrections that lower CoT on every seed (r_x +0.02 m at
-//! 0.2 and 0.4 m/s: −10.8 % and −5.9 %; X_z −0.005 m at 0.3 m/s: −1.2 %), which the joint search
-//! and PPO did not find. After its search, an entry's correction (the distribution's mean) is
+//! (the last generation may overrun it), and the validation episodes come on top of the budget.
+//! Moving one parameter of one entry by hand finds corrections that lower CoT at that entry's
+//! speed, which a search over all entries at once (and PPO) misses in its larger space. After
+//! its search, an entry's correction (the distribution's mean) is
 //! kept only if it beats the table on `validation_episodes` fresh episodes, the same ones for
 //! both (else the entry stays the table's): a correction that only wins on the noise of the
 //! search's own episodes is not a gain. With `nominal_episodes` it must also, on that many fresh
 //! episodes in the robot file's own world (flat floor, no payload, no pushes), walk without a
 //! fall at no more than `nominal_cot_tolerance` above the table's energy per distance: the
-//! return counts tracking too, and without this check the 1.0 m/s entry was kept for its
-//! tracking at 3.8–4.4 % more CoT on the flat floor than the table (issue 20 allows 3 %).
+//! return counts tracking too, so without this check an entry can be kept for better tracking
+//! at more CoT on the flat floor than issue 20 allows (3 %).
 //!
 //! Resume: the CMA-ES state is not serialisable, but the search is deterministic given its seed
 //! and the fitness values, so `checkpoint/evaluations.csv` records every evaluation and a resumed

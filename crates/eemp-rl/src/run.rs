@@ -519,6 +519,11 @@ impl WalkDescription {
             Some(p) => load_toml(p).map_err(|e| e.to_string())?,
             None => PlannerParams::default(),
         };
+        if self.params.is_some() {
+            robot
+                .check_body_height("--params body_height_m", params.body_height_m)
+                .map_err(|e| e.to_string())?;
+        }
         if self.table_ii && (self.params.is_some() || self.params_table.is_some()) {
             return Err(
                 "--table-ii asks for Table II's constants: drop --params / --params-table \
@@ -554,6 +559,18 @@ impl WalkDescription {
                         t.gait,
                         t.gait
                     ));
+                }
+                for e in &t.entries {
+                    robot
+                        .check_body_height(
+                            &format!(
+                                "{}: the {} m/s entry's body_height_m",
+                                p.display(),
+                                e.speed_mps
+                            ),
+                            e.body_height_m,
+                        )
+                        .map_err(|e| e.to_string())?;
                 }
                 if !self.allow_robot_mismatch {
                     t.robot_id()
@@ -742,6 +759,10 @@ impl WalkDescription {
             }
             spec.pushes
                 .push(Push::step(at, Vector3::new(0.0, self.push_dv_mps, 0.0)));
+        }
+        // The robot file's defaults, resolved here so `--set` and `eemp config show` see them.
+        if spec.controller.mpc.weight_heat.is_none() {
+            spec.controller.mpc.weight_heat = Some(robot.control.mpc_weight_heat.unwrap_or(0.0));
         }
         apply_sets(&mut spec, &self.set, is_eemp)?;
         spec.validate().map_err(|e| e.to_string())?;

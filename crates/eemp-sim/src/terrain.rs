@@ -17,8 +17,8 @@ const SOLIMP: &str = "0.015 1 0.031";
 /// more than a centimetre into the field, and MuJoCo's per-prism collision then reports the
 /// walls of the neighbouring cells (horizontal normals, 2 cm deep) instead of the surface: they
 /// squeeze the foot and friction holds it, so a swing leg pulling with 20 N·m at hip and knee
-/// stayed where it was for its whole swing (trot, seed 1, at 10.43 s) and the robot fell over it.
-/// Every EEMP gait fell on ±2 cm ground that way; with this value all three walk it.
+/// stays where it is for its whole swing and the robot trips over it. Stiff contact keeps the
+/// foot on the surface, and all three EEMP gaits walk ±2 cm ground with it.
 const HFIELD_SOLIMP: &str = "0.9 0.95 0.001";
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

@@ -145,6 +145,10 @@ pub struct MpcWeights {
     /// Ground reaction forces (one weight for every component).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub force: Option<f64>,
+    /// The motors' heat (`mpc.weight_heat`, 1/W; absent: the robot file's `[control]`
+    /// default). The paper's sweeps set 0: its cost has no heat term.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub heat: Option<f64>,
 }
 
 /// Largest MPC weight a sweep may set (the defaults reach 500).
@@ -169,6 +173,9 @@ impl MpcWeights {
         if let Some(f) = self.force {
             mpc.weight_force = f;
         }
+        if let Some(h) = self.heat {
+            mpc.weight_heat = Some(h);
+        }
     }
 
     /// Each weight as (key, values), for validation and reports.
@@ -186,6 +193,9 @@ impl MpcWeights {
         }
         if let Some(f) = self.force {
             out.push(("force", vec![f]));
+        }
+        if let Some(h) = self.heat {
+            out.push(("heat", vec![h]));
         }
         out
     }
@@ -400,6 +410,34 @@ pub struct SelectionConfig {
     pub manipulability_weight: f64,
     /// Lookup between the tabulated speeds in the written tables.
     pub interpolation: Interpolation,
+    /// Which CoT the score uses: the paper's eq. (8), or the battery's electrical CoT under the
+    /// robot file's motor model (the drives alone, or with the idle power).
+    pub objective: Objective,
+}
+
+/// The energy a sweep's selection minimises (`[selection] objective`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Objective {
+    /// Eq. (8): the net mechanical power of all joints (the paper's).
+    #[default]
+    Eq8,
+    /// The drives' electrical power, Σ max(τq̇ + k·τ², 0) under the robot's `[motor]`.
+    Electrical,
+    /// The same plus the electronics' idle power: what the battery pays.
+    ElectricalIdle,
+}
+
+impl Objective {
+    /// The CoT definition it selects on.
+    pub fn measure(self) -> crate::sensitivity::CotMeasure {
+        use crate::sensitivity::CotMeasure;
+        match self {
+            Objective::Eq8 => CotMeasure::Eq8,
+            Objective::Electrical => CotMeasure::Electrical,
+            Objective::ElectricalIdle => CotMeasure::ElectricalIdle,
+        }
+    }
 }
 
 impl Default for SelectionConfig {
@@ -409,6 +447,7 @@ impl Default for SelectionConfig {
             max_speed_error_ratio: 0.5,
             manipulability_weight: 0.01,
             interpolation: Interpolation::Nearest,
+            objective: Objective::Eq8,
         }
     }
 }
@@ -495,7 +534,7 @@ impl SweepConfig {
             body_height_m: v.axis(
                 "body_height_m",
                 &g.body_height_m,
-                table_i::BODY_HEIGHT_M,
+                eemp_core::planner::params::BODY_HEIGHT_LIMITS_M,
                 "m",
             )?,
             ellipse_rx_m: v.axis(
@@ -513,6 +552,14 @@ impl SweepConfig {
             duration_s: v.duration(g.duration_s.0)?,
             seeds: v.seeds(&g.seeds)?,
         };
+        // Table I's body heights are the paper's grid; a sweep may widen them as far as the
+        // robot's legs reach.
+        let robot = grid.robot_config().map_err(|e| v.error("grid.robot", e))?;
+        for h in &grid.body_height_m {
+            robot
+                .check_body_height("grid.body_height_m", *h)
+                .map_err(|e| v.error("grid.body_height_m", e.to_string()))?;
+        }
         if grid.checked_run_count().is_none_or(|n| n > MAX_RUNS) {
             let mut axes: Vec<usize> = grid.point_axes().to_vec();
             axes.push(grid.seeds.len());
@@ -824,6 +871,7 @@ impl Validator<'_> {
             max_speed_error_ratio: ratio,
             manipulability_weight: w,
             interpolation: raw.interpolation.unwrap_or(d.interpolation),
+            objective: raw.objective.unwrap_or_default(),
         })
     }
 }
@@ -868,6 +916,7 @@ struct RawSelection {
     max_speed_error_ratio: Option<Number>,
     manipulability_weight: Option<Number>,
     interpolation: Option<Interpolation>,
+    objective: Option<Objective>,
 }
 
 /// A TOML number, integer or float (`0` and `0.0` alike).

@@ -2,6 +2,11 @@
 //! each a list of `eemp` commands with the files it reads and writes, and the manifests that say
 //! which shipped artifact still matches its inputs.
 //!
+//! Each stage is of the *study* (what the paper's page, the comparisons and the defaults use:
+//! `eemp reproduce` runs these) or an *experiment* (earlier variants, ablations: on request). The
+//! study is closed: no study stage reads what an experiment makes, so the study stages alone
+//! regenerate every study artifact from the pipeline's sources.
+//!
 //! A *root* is a folder laid out as the repository (`tables/`, `policies/`, `reports/`, the
 //! configs): the repository itself, or the `--out` of a reproduction, which starts with a copy of
 //! the pipeline's sources. Every path of a stage is relative to the root; commands run in it.
@@ -43,8 +48,43 @@ pub struct Stage {
     /// The wall time measured for the full stage on 2 cores, for the listing [min].
     #[serde(default)]
     pub minutes_2_cores: Option<f64>,
+    /// `"study"` (the default) or `"experiment"` (see [`StageKind`]); checked by
+    /// [`Pipeline::load`].
+    #[serde(default = "default_kind")]
+    pub kind: String,
     #[serde(rename = "step")]
     pub steps: Vec<Step>,
+}
+
+fn default_kind() -> String {
+    StageKind::Study.name().to_string()
+}
+
+/// Whether a stage belongs to the study or is an experiment.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StageKind {
+    /// Makes what the paper's page (`reports/paper` and the reports it reads), the comparisons or
+    /// the defaults (the per-robot tables walks load) use, or what such a stage reads: run by
+    /// `eemp reproduce`.
+    Study,
+    /// An earlier variant or an ablation that no study stage reads: run on request
+    /// (`--experiments`, or `--stage NAME`).
+    Experiment,
+}
+
+impl StageKind {
+    pub const ALL: [StageKind; 2] = [StageKind::Study, StageKind::Experiment];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            StageKind::Study => "study",
+            StageKind::Experiment => "experiment",
+        }
+    }
+
+    pub fn parse(s: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|k| k.name() == s)
+    }
 }
 
 /// One step: an `eemp` command line or a copy. `{work}` in an argument is the stage's scratch
@@ -133,6 +173,14 @@ impl Pipeline {
                     }
                 }
             }
+            if StageKind::parse(&s.kind).is_none() {
+                return Err(format!(
+                    "stage '{}': kind '{}' is not one of {}",
+                    s.name,
+                    s.kind,
+                    StageKind::ALL.map(StageKind::name).join(", ")
+                ));
+            }
             for p in s.inputs.iter().chain(&s.outputs).chain(&s.code) {
                 check_relative(p).map_err(|m| format!("stage '{}': {m}", s.name))?;
             }
@@ -162,6 +210,18 @@ impl Pipeline {
         for p in &self.sources {
             check_relative(p)?;
         }
+        // The study is closed: running its stages alone regenerates every study artifact.
+        for s in self.stages.iter().filter(|s| s.is_study()) {
+            for i in &s.inputs {
+                if let Some(m) = self.maker_of(i).filter(|m| !m.is_study()) {
+                    return Err(format!(
+                        "stage '{}' is of the study but reads {i}, which the experiment '{}' \
+                         makes (mark that stage kind = \"study\", or this one an experiment)",
+                        s.name, m.name
+                    ));
+                }
+            }
+        }
         Ok(())
     }
 
@@ -180,16 +240,37 @@ impl Pipeline {
             })
     }
 
-    /// The stages named (all when `names` is empty), in pipeline order.
-    pub fn select(&self, names: &[String]) -> Result<Vec<&Stage>, PipelineError> {
+    /// The stages named, in pipeline order; when `names` is empty, the study's stages, and the
+    /// experiments too with `experiments`.
+    pub fn select(
+        &self,
+        names: &[String],
+        experiments: bool,
+    ) -> Result<Vec<&Stage>, PipelineError> {
         for n in names {
             self.stage(n)?;
         }
         Ok(self
             .stages
             .iter()
-            .filter(|s| names.is_empty() || names.iter().any(|n| n == &s.name))
+            .filter(|s| {
+                if names.is_empty() {
+                    experiments || s.is_study()
+                } else {
+                    names.iter().any(|n| n == &s.name)
+                }
+            })
             .collect())
+    }
+
+    /// The sum of `minutes_2_cores` over the stages of the study (`experiments = false`) or over
+    /// all of them [min].
+    pub fn minutes_2_cores(&self, experiments: bool) -> f64 {
+        self.stages
+            .iter()
+            .filter(|s| experiments || s.is_study())
+            .filter_map(|s| s.minutes_2_cores)
+            .sum()
     }
 
     /// The stage that writes `path`, if any.
@@ -216,6 +297,15 @@ fn check_relative(p: &str) -> Result<(), String> {
 }
 
 impl Stage {
+    /// The stage's kind (an unknown one, refused by [`Pipeline::load`], reads as the study).
+    pub fn kind(&self) -> StageKind {
+        StageKind::parse(&self.kind).unwrap_or(StageKind::Study)
+    }
+
+    pub fn is_study(&self) -> bool {
+        self.kind() == StageKind::Study
+    }
+
     /// The stage's scratch folder, relative to the root.
     pub fn work_dir(&self) -> String {
         format!("out/reproduce/{}", self.name)
@@ -691,7 +781,10 @@ copy = ["{work}", "reports/c"]
 
     #[test]
     fn bad_pipelines_and_names_are_refused_with_the_reason() {
-        let err = pipe().select(&["sweeps".into()]).unwrap_err().to_string();
+        let err = pipe()
+            .select(&["sweeps".into()], false)
+            .unwrap_err()
+            .to_string();
         assert_eq!(err, "unknown stage 'sweeps' (stages: sweep, suite)");
         for (from, to, says) in [
             (
@@ -725,6 +818,54 @@ copy = ["{work}", "reports/c"]
         for s in ["0/3", "4/3", "a/b", "3", "1/0"] {
             assert!(parse_shard(s).unwrap_err().contains("1 ≤ K ≤ N"), "{s}");
         }
+    }
+
+    #[test]
+    fn a_stage_is_of_the_study_by_default_and_an_unknown_kind_is_refused_naming_it() {
+        let p = pipe();
+        assert!(p.stages.iter().all(Stage::is_study));
+        let text = PIPE.replace("name = \"suite\"", "name = \"suite\"\nkind = \"ablation\"");
+        let p: Pipeline = toml::from_str(&text).unwrap();
+        assert_eq!(
+            p.validate().unwrap_err(),
+            "stage 'suite': kind 'ablation' is not one of study, experiment"
+        );
+        // An experiment is run on request; --stage runs it by name.
+        let text = PIPE.replace(
+            "name = \"suite\"",
+            "name = \"suite\"\nkind = \"experiment\"",
+        );
+        let p: Pipeline = toml::from_str(&text).unwrap();
+        p.validate().unwrap();
+        assert_eq!(p.stage("suite").unwrap().kind(), StageKind::Experiment);
+        let names = |v: Vec<&Stage>| v.iter().map(|s| s.name.clone()).collect::<Vec<_>>();
+        assert_eq!(names(p.select(&[], false).unwrap()), ["sweep"]);
+        assert_eq!(names(p.select(&[], true).unwrap()), ["sweep", "suite"]);
+        assert_eq!(
+            names(p.select(&["suite".into()], false).unwrap()),
+            ["suite"]
+        );
+    }
+
+    #[test]
+    fn a_study_stage_reading_what_an_experiment_makes_is_refused() {
+        let text = PIPE.replace(
+            "name = \"sweep\"",
+            "name = \"sweep\"\nkind = \"experiment\"\nminutes_2_cores = 2",
+        );
+        let p: Pipeline = toml::from_str(&text).unwrap();
+        let e = p.validate().unwrap_err();
+        assert!(
+            e.starts_with(
+                "stage 'suite' is of the study but reads tables/a.toml, which the experiment \
+                 'sweep' makes"
+            ),
+            "{e}"
+        );
+        assert_eq!(
+            (p.minutes_2_cores(false), p.minutes_2_cores(true)),
+            (0.0, 2.0)
+        );
     }
 
     #[test]

@@ -292,12 +292,25 @@ pub fn write_tables(
             })?;
         std::fs::create_dir_all(tables_dir).map_err(|e| StudyError::write(tables_dir, e))?;
         let path = tables_dir.join(table_file_name(g.gait));
+        let kf_note = if grid.estimator.is_ground_truth() {
+            ""
+        } else {
+            "# Selected from runs on the Kalman filter (sweep estimator = \"kf\").\n"
+        };
+        let objective_note = match sel.objective {
+            crate::config::Objective::Eq8 => String::new(),
+            o => format!(
+                "# cot is the {} CoT (selection.objective = \"{}\"), not eq. (8)'s.\n",
+                o.measure().describe(),
+                o.measure().name()
+            ),
+        };
         let text = format!(
             "# EEMP-Analytical lookup table for the {} gait, selected by `eemp sweep report` from\n\
              # {}: per speed the grid point with the lowest score cot - {} * manipulability among\n\
              # points that stood in every seed, tracked the command within {} m/s (velocity RMSE)\n\
              # and whose mean speed is off the command by at most {} x the command.\n\
-             # Use: eemp walk --gait {} --params-table {}\n{}{}",
+             # Use: eemp walk --gait {} --params-table {}\n{kf_note}{objective_note}{}",
             g.gait,
             sweep_dir.display(),
             sel.manipulability_weight,
@@ -305,11 +318,6 @@ pub fn write_tables(
             sel.max_speed_error_ratio,
             g.gait,
             path.display(),
-            if grid.estimator.is_ground_truth() {
-                ""
-            } else {
-                "# Selected from runs on the Kalman filter (sweep estimator = \"kf\").\n"
-            },
             table.to_toml()
         );
         crate::store::write_atomic(&path, text.as_bytes())?;

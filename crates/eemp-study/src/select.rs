@@ -836,6 +836,7 @@ pub(crate) mod tests {
         max_speed_error_ratio: 0.5,
         manipulability_weight: 0.01,
         interpolation: Interpolation::Nearest,
+        objective: crate::config::Objective::Eq8,
     };
 
     #[test]

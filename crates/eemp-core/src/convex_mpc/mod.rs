@@ -14,7 +14,7 @@ use crate::config_error::{check_range, ConfigError};
 use crate::leg::{Leg, LegMap};
 use crate::robot::CompositeBody;
 use model::{InputMatrix, StateVector, GRAVITY, NU};
-use nalgebra::{DMatrix, DVector, Vector3};
+use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 pub use qp_backend::{QpError, QpSolverKind};
 use serde::{Deserialize, Serialize};
 
@@ -45,6 +45,13 @@ pub struct MpcConfig {
     pub weight_velocity: [f64; 3],
     /// Weight on every squared force component (1/N²).
     pub weight_force: f64,
+    /// Weight on the stance legs' Joule heat Σ fᵀ R J K Jᵀ Rᵀ f per horizon step (1/W): the
+    /// heat Σ k·τ² of the joint torques τ = Jᵀ Rᵀ f that carry each force (K the robot file's
+    /// heat coefficients, J the leg Jacobian at the solve's configuration). 0: off (the paper's
+    /// force-norm cost alone); needs a robot file with `[motor]`. `None`: the robot file's
+    /// `[control] mpc_weight_heat`, else 0.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub weight_heat: Option<f64>,
     pub solver: QpSolverKind,
     /// Leave the force variables of feet out of contact out of the QP (smaller problem) instead
     /// of bounding them to zero.
@@ -67,6 +74,7 @@ impl Default for MpcConfig {
             weight_omega: [0.0, 0.0, 3.0],
             weight_velocity: [2.0, 2.0, 1.0],
             weight_force: 1e-5,
+            weight_heat: None,
             solver: QpSolverKind::Quadprog,
             drop_swing_forces: true,
         }
@@ -96,6 +104,9 @@ impl MpcConfig {
             }
         }
         check_range("mpc.weight_force", self.weight_force, 1e-12, 1.0)?;
+        if let Some(w) = self.weight_heat {
+            check_range("mpc.weight_heat", w, 0.0, 1.0)?;
+        }
         Ok(())
     }
 
@@ -121,6 +132,21 @@ pub struct MpcInput<'a> {
     pub feet_world: &'a [LegMap<Vector3<f64>>],
     /// Which feet may push during each step (the contact schedule C_ref).
     pub contacts: &'a [LegMap<bool>],
+    /// Per foot, the Joule heat a world-frame force f costs, fᵀ M f in W (M = R J K Jᵀ Rᵀ,
+    /// [`heat_matrix`]), weighed by `weight_heat`; `None`: no heat term.
+    pub heat: Option<&'a LegMap<Matrix3<f64>>>,
+}
+
+/// The heat matrix M of one leg: a ground force `f_world` on its foot is held by the joint
+/// torques τ = −Jᵀ Rᵀ f, whose Joule heat Σⱼ kⱼ τⱼ² is fᵀ M f with M = R J K Jᵀ Rᵀ (W/N²).
+pub fn heat_matrix(
+    jacobian_body: &Matrix3<f64>,
+    r_world_body: &nalgebra::UnitQuaternion<f64>,
+    heat_coefficient_w_per_nm2: &[f64; 3],
+) -> Matrix3<f64> {
+    let rj = r_world_body.to_rotation_matrix().matrix() * jacobian_body;
+    let k = Matrix3::from_diagonal(&Vector3::from(*heat_coefficient_w_per_nm2));
+    rj * k * rj.transpose()
 }
 
 /// How a solve ended.
@@ -308,6 +334,22 @@ impl ConvexMpc {
             q[i] = self.g_full[*fi];
             for (j, fj) in full_index.iter().enumerate() {
                 p[i * nv + j] = self.h_full[(*fi, *fj)];
+            }
+        }
+        // The stance legs' heat, one 3×3 block per (step, foot in contact): still convex (M is
+        // positive semi-definite).
+        if let (Some(heat), Some(w)) = (input.heat, self.config.weight_heat) {
+            if w > 0.0 {
+                for (bi, (k, leg)) in blocks.iter().enumerate() {
+                    if !input.contacts[*k][*leg] {
+                        continue;
+                    }
+                    for r in 0..3 {
+                        for c in 0..3 {
+                            p[(3 * bi + r) * nv + 3 * bi + c] += w * heat[*leg][(r, c)];
+                        }
+                    }
+                }
             }
         }
         // Feet out of contact (only present when their variables are kept): f = 0 as equality

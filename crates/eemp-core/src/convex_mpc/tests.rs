@@ -2,7 +2,7 @@ use super::*;
 use crate::kinematics::LegKinematics;
 use crate::robot::RobotConfig;
 use approx::assert_relative_eq;
-use nalgebra::UnitQuaternion;
+use nalgebra::{Matrix3, UnitQuaternion};
 use rand::{Rng, SeedableRng};
 
 struct Scene {
@@ -54,6 +54,7 @@ impl Scene {
             reference: &self.reference,
             feet_world: &self.feet,
             contacts: &self.contacts,
+            heat: None,
         };
         self.mpc.solve(&input)
     }
@@ -268,6 +269,7 @@ fn static_distribution_matches_the_lever_law() {
         reference: &scene.reference,
         feet_world: &scene.feet,
         contacts: &scene.contacts,
+        heat: None,
     };
     let f = scene.mpc.static_forces(&input, LegMap::splat(true));
     let total: f64 = f.0.iter().map(|v| v.z).sum();
@@ -345,4 +347,83 @@ fn a_diagonal_pair_shares_the_weight() {
             rl.z
         );
     }
+}
+
+/// The heat term splits a standing robot's weight by what each leg's heat costs. Feet on a
+/// rectangle centred under the COM: every split f_FL = f_RR = s, f_FR = f_RL = W/2 − s carries
+/// the weight with zero moment. With vertical heat m·f_z² per foot (m = 1 on FL and RR, 3 on FR
+/// and RL) the heat m_FL s² + m_RR s² + m_FR (W/2 − s)² + m_RL (W/2 − s)² is least at
+/// s* = (m_FR + m_RL)·(W/2) / Σm = 3W/8 (by hand); the force-norm cost alone splits W/4 each.
+#[test]
+fn the_heat_term_moves_the_standing_weight_to_the_legs_whose_torques_heat_less() {
+    let heat = LegMap::from_fn(|leg| {
+        let m = match leg {
+            Leg::FrontLeft | Leg::RearRight => 1.0,
+            _ => 3.0,
+        };
+        Matrix3::from_diagonal(&Vector3::new(0.05, 0.05, m))
+    });
+    let split = |weight_heat: f64| {
+        let mut scene = standing_scene(MpcConfig {
+            weight_heat: Some(weight_heat),
+            ..MpcConfig::default()
+        });
+        let com = scene.body.p_world + scene.mpc.body().com_body;
+        let feet = LegMap::from_fn(|leg| {
+            Vector3::new(
+                com.x + 0.18 * leg.front_sign(),
+                com.y + 0.13 * leg.side_sign(),
+                0.02,
+            )
+        });
+        scene.feet = vec![feet; scene.reference.len()];
+        let input = MpcInput {
+            body: &scene.body,
+            reference: &scene.reference,
+            feet_world: &scene.feet,
+            contacts: &scene.contacts,
+            heat: Some(&heat),
+        };
+        let sol = scene.mpc.solve(&input);
+        assert!(sol.status.is_solved(), "{:?}", sol.status);
+        let w = scene.mpc.body().mass_kg * GRAVITY;
+        let heat_w: f64 = Leg::ALL
+            .iter()
+            .map(|l| sol.forces_world[*l].dot(&(heat[*l] * sol.forces_world[*l])))
+            .sum();
+        (sol.forces_world, w, heat_w)
+    };
+    let (plain, w, plain_heat) = split(0.0);
+    let (heated, _, heated_heat) = split(1e-3);
+    // Without the term: a quarter of the weight on each foot.
+    for l in Leg::ALL {
+        assert_relative_eq!(plain[l].z, w / 4.0, max_relative = 0.02);
+    }
+    // With it: the hand-worked optimum, 3/8 of the weight on FL and RR, 1/8 on the others.
+    for (l, share) in [
+        (Leg::FrontLeft, 0.375),
+        (Leg::RearRight, 0.375),
+        (Leg::FrontRight, 0.125),
+        (Leg::RearLeft, 0.125),
+    ] {
+        assert_relative_eq!(heated[l].z / w, share, epsilon = 0.01);
+    }
+    // m(s) at s = W/4: 8·(W/4)² = W²/2; at 3W/8: 2·(9/64) + 6·(1/64) = 24/64 = 3W²/8.
+    assert_relative_eq!(plain_heat / (w * w), 0.5, max_relative = 0.03);
+    // (The tracking terms and the small tangential heat keep it a few % above the optimum.)
+    assert_relative_eq!(heated_heat / (w * w), 0.375, max_relative = 0.06);
+    assert!(heated_heat < 0.8 * plain_heat);
+}
+
+#[test]
+fn the_heat_matrix_is_the_heat_of_the_torques_that_hold_a_force() {
+    // Second method: τ = −Jᵀ Rᵀ f, heat Σ k τ².
+    let j = Matrix3::new(0.0, -0.21, -0.1, 0.2, 0.01, 0.0, 0.05, 0.1, 0.18);
+    let r = UnitQuaternion::from_euler_angles(0.1, -0.2, 0.7);
+    let k = [0.3, 0.5, 0.2];
+    let f = Vector3::new(3.0, -2.0, 30.0);
+    let tau = -(j.transpose() * (r.inverse() * f));
+    let by_hand: f64 = (0..3).map(|i| k[i] * tau[i] * tau[i]).sum();
+    let m = heat_matrix(&j, &r, &k);
+    assert_relative_eq!(f.dot(&(m * f)), by_hand, max_relative = 1e-12);
 }

@@ -50,10 +50,9 @@ pub const WALK_ORDER: [Leg; 4] = [
 ];
 
 /// The walk's order when the trunk moves backwards: [`WALK_ORDER`] with front and rear swapped, so
-/// that the legs at the back of the motion lead as the hind legs do forwards. With the forward
-/// order a backward walk (A1, its table, seeds 1–3, 20 s, −0.1 / −0.2 / −0.3 / −0.5 m/s) fell in 6
-/// of 12 runs on ground truth and 7 of 12 on the filter, tracking with 0.13–0.27 m/s RMSE; with
-/// this one in none, RMSE 0.04–0.08 m/s, CoT 0.40–0.62 against 0.53–1.41 (forward walks are
+/// that the legs at the back of the motion lead as the hind legs do forwards. Walked backwards in
+/// the forward order, the legs at the front of the motion lead, and the walk tracks badly, costs
+/// more and falls; in this order it walks backwards as it does forwards (forward walks are
 /// unchanged bit for bit).
 pub const WALK_ORDER_BACKWARD: [Leg; 4] = [
     Leg::FrontLeft,
@@ -65,8 +64,8 @@ pub const WALK_ORDER_BACKWARD: [Leg; 4] = [
 /// When the free gait swings a leg's diagonal partner with it (the paper leaves the free gait's
 /// choice open). Both rules target the same failure: a lone swing with the feet behind the hips
 /// (at the back of their ellipses) leaves the trunk ahead of the other three feet, it tips
-/// towards the swinging foot, and on a floor of friction 0.3 the loaded feet slide out (the
-/// free gait fell at 1.8 s there on ground truth, every seed, with neither rule).
+/// towards the swinging foot, and on a floor of friction 0.3 the loaded feet slide out (without
+/// either rule the free gait does not stay up on such a floor).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct FreePairing {
@@ -97,19 +96,18 @@ impl Default for FreePairing {
 /// does). A lone swing leaves the trunk on the other three feet, and in the walk's symmetric
 /// stance the trunk stands on the diagonal those feet span, so a velocity error towards the
 /// lifted foot's corner tips it over that diagonal: the MPC cannot brake while the centre of
-/// pressure it needs lies outside the triangle. Traced under a 0.5 m/s side push on a 0.3 floor
-/// (walk, 0.1 m/s, filter): the front leg on the pushed side lifted 0.03–0.06 s after the push,
-/// the trunk kept its 0.40–0.50 m/s sideways for the whole swing and gained 0.35 m/s forwards,
-/// and it ran out of its feet within the next steps. So a leg is passed over while the capture
-/// point of the velocity error (the trunk plus eq. (6)'s feedback term √(X_z/g)·(V_cur −
-/// V_des), unbounded) lies more than `-margin_m` outside the other three feet's triangle, and
-/// the next leg of the order whose triangle holds it swings instead (the order then goes on
-/// from that leg); when none does, the leg of the order swings. On command the capture point is
-/// the trunk, so a walk that tracks its command keeps its order. Only below a commanded speed
-/// (`max_speed_mps`, 0.6 m/s, where the walk's slip handling stops too): at 0.7–1.0 m/s the
-/// walk tracks 0.2 m/s behind its command and its trunk runs ahead of its feet, the check
-/// passed over legs there, and on the flat floor at 1.0 m/s (table, ground truth, seed 4) the
-/// walk fell.
+/// pressure it needs lies outside the triangle. Under a side push on a slippery floor, a leg on
+/// the pushed side that lifts right after the push leaves the trunk sliding sideways over that
+/// diagonal for the whole swing, and it runs out of its feet within the next steps. So a leg is
+/// passed over while the capture point of the velocity error (the trunk plus eq. (6)'s feedback
+/// term √(X_z/g)·(V_cur − V_des), unbounded) lies more than `-margin_m` outside the other three
+/// feet's triangle, and the next leg of the order whose triangle holds it swings instead (the
+/// order then goes on from that leg); when none does, the leg of the order swings. On command
+/// the capture point is the trunk, so a walk that tracks its command keeps its order. Only
+/// below a commanded speed (`max_speed_mps`, 0.6 m/s, where the walk's slip handling stops
+/// too): at 0.7–1.0 m/s the walk tracks 0.2 m/s behind its command and its trunk runs ahead of
+/// its feet, so the check would pass over legs there and break the order the fast walk needs
+/// to stay up even on the flat floor.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct WalkSupport {
@@ -136,12 +134,11 @@ pub const DEFAULT_WALK_SUPPORT_MAX_SPEED_MPS: f64 = crate::slip::WALK_MAX_SPEED_
 pub const WALK_SUPPORT_MAX_SPEED_RANGE: [f64; 2] = [0.0, 10.0];
 
 impl Default for WalkSupport {
-    /// −0.05 m, measured (walk at 0.1 m/s, its table, filter, seed 1, the first push shifted
-    /// over 20 phases of a walk cycle, `scripts/push-phases.sh`) under 0.6 m/s side pushes on a
-    /// 0.3 floor, harder than the suite's so that the count tells rules apart: falls of 20
-    /// without the check 12; with a margin of −0.05 m 7, −0.03 m 7, −0.02 m 20 (an ordinary
-    /// walk's capture point lies up to ≈ 2 cm outside the triangle of the leg its order lifts,
-    /// and the walk then lost its order).
+    /// −0.05 m: an ordinary walk's capture point lies up to ≈ 2 cm outside the triangle of the
+    /// leg its order lifts, so a margin that tight passes over legs in ordinary walking and the
+    /// walk loses its order; −0.05 m leaves room for that and still passes over the legs whose
+    /// lift would tip the trunk under a side push on a slippery floor (it keeps as many such
+    /// pushes as −0.03 m, and far more than no check).
     fn default() -> Self {
         WalkSupport {
             check: true,

@@ -40,19 +40,18 @@ pub const ELLIPSE_FRICTION_FACTOR_RANGE: [f64; 2] = [0.0, 3.0];
 pub const TOUCHDOWN_FRICTION_FACTOR_RANGE: [f64; 2] = [0.0, 3.0];
 
 /// `PlannerConfig::touchdown_friction_factor` by default for the trot and the free gait (the
-/// walk's is 0, [`default_touchdown_friction_factor`]). Measured under 0.5 m/s side pushes on
-/// a 0.3 floor (trot and free gait with their tables, filter, 0.1 / 0.3 / 0.5 m/s, seeds 11–16,
-/// 36 runs): falls with no limit 21, with 0.5 6, with 0.3 7; on the suite's seeds 1–3 (18 runs)
-/// no limit 8, 1 (the whole cone) 8, 0.5 4, 0.4 5, 0.3 4. Below 1 because μ̂ on such a floor
-/// reads above it (0.41–0.42 on average on the 0.3 floor) and the trot's stance feet stand a
-/// hip's width beside the trunk.
+/// walk's is 0, [`default_touchdown_friction_factor`]). Below 1 because μ̂ on a slippery floor
+/// reads above the floor's own coefficient and the trot's stance feet stand a hip's width beside
+/// the trunk, so a step as long as the whole cone still asks for more braking than the floor
+/// gives; under side pushes on a slippery floor ½ kept far more runs up than the whole cone or
+/// no limit, and as many as smaller factors.
 pub const DEFAULT_TOUCHDOWN_FRICTION_FACTOR: f64 = 0.5;
 
 /// The gait's `PlannerConfig::touchdown_friction_factor` where the config leaves it unset: 0.5
 /// ([`DEFAULT_TOUCHDOWN_FRICTION_FACTOR`]) for the trot and the free gait, 0 (the paper's
 /// unbounded step) for the walk. The walk stands on three feet, not on a diagonal it can tip
-/// over, and at 0.1 m/s under the same pushes (filter, seeds 1–3 and 11–16, 9 runs) it fell
-/// 4 times unbounded, 6 with 0.5 and 8 with 1 (at 0.3 and 0.5 m/s never).
+/// over the way the trot rolls, and its slow pushed runs on a slippery floor fell more often
+/// with the step bounded, not less.
 pub fn default_touchdown_friction_factor(gait: Gait) -> f64 {
     match gait {
         Gait::Walk => 0.0,
@@ -63,12 +62,9 @@ pub fn default_touchdown_friction_factor(gait: Gait) -> f64 {
 /// The gait's `PlannerConfig::ellipse_friction_factor` where the config leaves it unset: 1 for
 /// the trot and the free gait, 0 (off) for the walk. The walk moves one leg at a time, so
 /// ellipses shrunk by a μ̂ that a push's own slides lowered (to 0.15 · 0.31 = 0.047 m on a 0.3
-/// floor) slow the steps that catch the trunk: under 0.5 m/s side pushes on a 0.3 floor at 0.1
-/// m/s (filter, seed 1, the first push shifted over 20 phases of one walk cycle,
-/// `scripts/push-phases.sh`) it fell in 11 of 20 with the cone and 7 without. Everywhere else
-/// measured the walk's runs were the same either way (the 0.25, 0.2 and 0.8 → 0.2 → 0.8 floors
-/// at 0.1 / 0.3 / 0.5 m/s, seeds 1–3 and 11–16, 81 runs; the pushes at 0.3 and 0.5 m/s, 20
-/// phases each; the flat floor, seeds 1–12, with CoT 0.609 against 0.612 at 0.5 m/s).
+/// floor) slow the steps that catch the trunk: under side pushes on a slippery floor the slow
+/// walk falls more often with the cone than without it, and on the slippery floors, under faster
+/// pushes and on the flat floor it walks the same either way.
 pub fn default_ellipse_friction_factor(gait: Gait) -> f64 {
     match gait {
         Gait::Walk => 0.0,
@@ -77,9 +73,9 @@ pub fn default_ellipse_friction_factor(gait: Gait) -> f64 {
 }
 
 /// How much wider than eq. (6)'s commanded touchdown offset an ellipse shrunk into the friction
-/// cone stays: at 1.25 the trot's table at 0.5 m/s (r_x 0.07 m, offset 0.0625 m) is left alone,
-/// where shrinking it to 0.056 m on a 0.2 floor made it fall 3 of 3 on the filter (1 of 3
-/// unshrunk): its feet landed outside their ellipses and swung again.
+/// cone stays: a foot that lands outside its ellipse swings again, so an ellipse shrunk below the
+/// commanded offset makes the robot re-step where it should walk. At 1.25 the trot's table at
+/// 0.5 m/s (r_x 0.07 m, offset 0.0625 m) is left alone even on a 0.2 floor (cone 0.056 m).
 pub const STRIDE_MARGIN: f64 = 1.25;
 
 /// Settings of the planner other than the five tuned parameters.
@@ -91,10 +87,9 @@ pub struct PlannerConfig {
     /// Algorithm 1.
     pub progress_factor: f64,
     /// The body reference follows a step in the command at most this fast, m/s² (the MPC
-    /// otherwise asks for forces the friction cone cannot give). 0.5 by default: at 1.0 the
-    /// free gait fell within 1.6 s when started from rest at 0.8 and 1.0 m/s (its first
-    /// single-leg swings cannot keep up with feet leaving their ellipses that fast), at 0.5 it
-    /// walks both for 20 s.
+    /// otherwise asks for forces the friction cone cannot give). 0.5 by default: started from
+    /// rest at a high speed the free gait's first swings are single-leg ones, which cannot keep
+    /// up with feet leaving their ellipses as fast as a quicker reference drives them out.
     pub max_accel_mps2: f64,
     /// Re-evaluate eq. (6) at every control step of a running swing with the velocity measured
     /// then, and move the touchdown point accordingly (as the MIT Cheetah controllers do). On
@@ -124,9 +119,10 @@ pub struct PlannerConfig {
     /// Keeps the placement ellipses inside the friction cone seen from the hip: r_x, r_y ≤
     /// factor · μ̂ · X_z, μ̂ the slip detector's coefficient ([`PlannerParams::within_friction_cone`]).
     /// 0 turns it off. At the nominal μ̂ = 0.6 it never binds (Table I's widest ellipse,
-    /// 0.15 m, is below 0.6 · 0.28 m), so it only acts once slips have lowered μ̂: the trot's
-    /// table at 0.1 m/s (r_x 0.15 m, r_y 0.10 m) fell 3 of 3 on a whole 0.2 floor on the filter
-    /// and walked 3 of 3 with r_x 0.07 m, r_y 0.05 m. `None` (the default): the gait's, 1 for
+    /// 0.15 m, is below 0.6 · 0.28 m), so it only acts once slips have lowered μ̂: a foot placed
+    /// further from the hip than the cone reaches cannot brake the trunk on that floor, so the
+    /// trot's wide slow-speed ellipses (r_x 0.15 m, r_y 0.10 m at 0.1 m/s) fall on a 0.2 floor
+    /// where ellipses inside the cone walk. `None` (the default): the gait's, 1 for
     /// the trot and the free gait, 0 for the walk ([`default_ellipse_friction_factor`];
     /// [`PlannerConfig::ellipse_friction_factor_in_force`]).
     pub ellipse_friction_factor: Option<f64>,
@@ -134,9 +130,8 @@ pub struct PlannerConfig {
     /// (μ̂ the MPC's friction coefficient, the slip detector's where it runs;
     /// [`touchdown::progress`]); 0 turns it off. The paper's capture step assumes the foot can
     /// brake the trunk with a leg force leaning as far as the step; on a slippery floor it
-    /// cannot, and the wide step makes the trunk roll over its diagonal (a 0.5 m/s side push on
-    /// a 0.3 floor threw the trot and the free gait in 21 of 36 runs with the full step, on the
-    /// filter, seeds 11–16). At the nominal μ̂ = 0.6 and the default ½ it binds only above a
+    /// cannot, and the wide step makes the trunk roll over its diagonal under a side push on a
+    /// slippery floor. At the nominal μ̂ = 0.6 and the default ½ it binds only above a
     /// 0.5 m/s velocity error. `None` (the default): the gait's
     /// ([`default_touchdown_friction_factor`]; [`PlannerConfig::touchdown_friction_factor_in_force`]).
     pub touchdown_friction_factor: Option<f64>,
@@ -536,8 +531,8 @@ impl EemPlanner {
 
     /// The legs whose swing starts now: none while a swing runs ("swing phase complete" in
     /// Algorithm 1), else the gait rule's choice among the stance feet outside their ellipses.
-    /// (Letting the free gait start a diagonal partner mid-swing was tried: it tracked worse at
-    /// 0.05–0.1 m/s and still fell at 0.8 m/s.)
+    /// (Letting the free gait start a diagonal partner mid-swing was tried: it tracks worse at
+    /// low speed and does not keep the robot up at high speed.)
     fn next_legs(
         &self,
         state: &RobotState,

@@ -12,6 +12,12 @@ pub mod table_i {
     pub const ELLIPSE_AXIS_M: [f64; 2] = [0.01, 0.15];
 }
 
+/// What any robot's body height X_z may be, m: a plausibility bound. Table I's 0.28–0.311 m is
+/// the A1 paper's grid, not a limit: the battery's optimum lies above it (straighter knees hold
+/// the weight with less torque), and a larger robot stands higher. The robot's own reach is
+/// checked where the robot is known ([`crate::robot::RobotConfig::body_height_range_m`]).
+pub const BODY_HEIGHT_LIMITS_M: [f64; 2] = [0.05, 2.0];
+
 /// Planner parameters (the action of EEMP-RL, the grid of EEMP-Analytical).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -134,8 +140,8 @@ impl PlannerParams {
         check_range(
             "body_height_m (X_z)",
             self.body_height_m,
-            BODY_HEIGHT_M[0],
-            BODY_HEIGHT_M[1],
+            BODY_HEIGHT_LIMITS_M[0],
+            BODY_HEIGHT_LIMITS_M[1],
         )?;
         check_range(
             "ellipse_rx_m (r_x)",

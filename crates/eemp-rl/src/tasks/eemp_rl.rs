@@ -339,8 +339,9 @@ pub enum DecisionTiming {
 
 /// The worlds EEMP-RL trains in: each environment gets its own floor (rough or flat, its
 /// friction, perhaps a patch of lower friction ahead) and payload, drawn once from the run's
-/// seed; pushes are drawn per episode. Terrain seeds start at `terrain_seed_base` (the
-/// robustness suite's rough floor has seed 1 and its runs seeds 1–3: keep them apart).
+/// seed; pushes are drawn per episode. Terrain seeds start at `terrain_seed_base`, kept apart
+/// from the low seeds the robustness suite's rough floor and runs use, so that a policy is not
+/// evaluated on the very ground it trained on.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct TrainWorlds {
@@ -515,14 +516,18 @@ pub struct EempRlConfig {
     pub cot_clip: f64,
     /// The controller lowers the MPC's friction after slips (`eemp_core::slip`). Off when a
     /// file does not say, as the earlier policies (v1, stage 1, touchdown) were trained; a
-    /// policy runs with the controller it was trained with (with an early form of the adapter
-    /// on, floor 0.1–0.2, the 450 k policy fell in 0 to 6 of the comparison's 30 runs
-    /// depending on the floor, against 1 without). The shipped policy's config turns it on.
+    /// policy runs with the controller it was trained with (its actions were learned against
+    /// that controller's friction, and under another one it can fall where it walked). The
+    /// shipped policy's config turns it on.
     pub adapt_friction: bool,
     /// When the free gait swings a diagonal partner along (`eemp_core::planner::FreePairing`).
     /// The earlier rule (`FreePairing::UNPAIRED`) when a file does not say, as the first
     /// policy was trained; the shipped config sets the current default.
     pub free_pairing: FreePairing,
+    /// The MPC's weight on the motors' heat (`mpc.weight_heat`): 0 when a file does not say,
+    /// as every policy trained before the heat term was (a policy runs with the controller it
+    /// was trained with).
+    pub mpc_weight_heat: f64,
     /// The residual form (None: the absolute form of the first policy).
     pub residual: Option<ResidualConfig>,
     /// Training worlds (None: the robot file's flat floor, no pushes, no payload).
@@ -543,6 +548,7 @@ impl Default for EempRlConfig {
             cot_clip: 1.5,
             adapt_friction: false,
             free_pairing: FreePairing::UNPAIRED,
+            mpc_weight_heat: 0.0,
             residual: None,
             worlds: None,
         }
@@ -551,6 +557,7 @@ impl Default for EempRlConfig {
 
 impl EempRlConfig {
     pub fn validate(&self) -> Result<(), ConfigError> {
+        check_range("eemp_rl.mpc_weight_heat", self.mpc_weight_heat, 0.0, 1.0)?;
         check_range(
             "eemp_rl.decision_period_s",
             self.decision_period_s,
@@ -683,6 +690,7 @@ pub fn walk_spec(config: &EempRlConfig, params: PlannerParams) -> WalkSpec {
         config.episode_s,
     );
     spec.controller.slip.adapt_friction = config.adapt_friction;
+    spec.controller.mpc.weight_heat = Some(config.mpc_weight_heat);
     spec
 }
 
