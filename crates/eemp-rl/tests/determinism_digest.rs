@@ -27,14 +27,15 @@ impl Fnv {
     }
 }
 
-/// (robot, gait, estimator, pinned digest). The Go1's and Go2's free-gait tables pair the
-/// diagonal legs with the trot's parameters, so their free gait walks the trot's bytes.
+/// (robot, gait, estimator, pinned digest). The Go1's and Go2's free-gait tables, and the A1's
+/// battery tables at 0.3 m/s, give the free gait the trot's parameters, and with them it pairs
+/// the diagonal legs and walks the trot's bytes.
 const PINS: [(&str, &str, &str, u64); 9] = [
-    ("a1", "trot", "ground-truth", 0xf904b5e6e508077d),
-    ("a1", "walk", "ground-truth", 0x09b61647ac6045a8),
-    ("a1", "free", "ground-truth", 0xdfa7b5bc0eb5f9a1),
-    ("a1", "free", "kf", 0x2009e3b640fa4432),
-    ("a1", "trot", "kf", 0x43b6d55474fd1686),
+    ("a1", "trot", "ground-truth", 0x91bd4447ee23caa9),
+    ("a1", "walk", "ground-truth", 0x99b7302b5de06fcf),
+    ("a1", "free", "ground-truth", 0x91bd4447ee23caa9),
+    ("a1", "free", "kf", 0x4d6fbb4dd6bca5da),
+    ("a1", "trot", "kf", 0x4d6fbb4dd6bca5da),
     ("go1", "trot", "kf", 0xa15e2e79e1e9f475),
     ("go1", "walk", "kf", 0x722ae2074e1c2474),
     ("go2", "trot", "kf", 0xb245dc670c437ffa),

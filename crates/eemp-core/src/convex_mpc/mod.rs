@@ -45,9 +45,10 @@ pub struct MpcConfig {
     pub weight_velocity: [f64; 3],
     /// Weight on every squared force component (1/N²).
     pub weight_force: f64,
-    /// Weight on the stance legs' Joule heat Σ fᵀ R J K Jᵀ Rᵀ f per horizon step (1/W): the
-    /// heat Σ k·τ² of the joint torques τ = Jᵀ Rᵀ f that carry each force (K the robot file's
-    /// heat coefficients, J the leg Jacobian at the solve's configuration). 0: off (the paper's
+    /// Weight on the stance legs' Joule heat per horizon step (1/W): Σ Mᵢᵢ fᵢ² over each force's
+    /// components, the diagonal of the heat fᵀ M f = Σ k·τ² of the joint torques τ = Jᵀ Rᵀ f
+    /// that carry it (M = R J K Jᵀ Rᵀ, [`heat_matrix`]; K the robot file's heat coefficients,
+    /// J the leg Jacobian at the solve's configuration). 0: off (the paper's
     /// force-norm cost alone); needs a robot file with `[motor]`. `None`: the robot file's
     /// `[control] mpc_weight_heat`, else 0.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -336,8 +337,11 @@ impl ConvexMpc {
                 p[i * nv + j] = self.h_full[(*fi, *fj)];
             }
         }
-        // The stance legs' heat, one 3×3 block per (step, foot in contact): still convex (M is
-        // positive semi-definite).
+        // The stance legs' heat, per (step, foot in contact), from the diagonal of M: each force
+        // component pays the heat of the torques that carry it. M's cross terms are left out:
+        // they pay the QP to lean each leg's force along the leg (inward squeeze between the
+        // feet, which costs no trunk motion), which trades torque for friction, and the friction
+        // a floor gives is what slip handling only learns by slipping. Still convex.
         if let (Some(heat), Some(w)) = (input.heat, self.config.weight_heat) {
             if w > 0.0 {
                 for (bi, (k, leg)) in blocks.iter().enumerate() {
@@ -345,9 +349,7 @@ impl ConvexMpc {
                         continue;
                     }
                     for r in 0..3 {
-                        for c in 0..3 {
-                            p[(3 * bi + r) * nv + 3 * bi + c] += w * heat[*leg][(r, c)];
-                        }
+                        p[(3 * bi + r) * nv + 3 * bi + r] += w * heat[*leg][(r, r)];
                     }
                 }
             }

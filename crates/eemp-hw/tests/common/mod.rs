@@ -137,6 +137,21 @@ pub fn check(case: &Case, sim: &SimRobotReport, hw: &HwReport) {
                 case.name
             );
             assert!(hw.states > 100 && sim.commands > 100, "{}", case.name);
+            // The battery's account from the robot's own torque estimates and velocities: the
+            // drives' power over the run at least holds the robot up (tens of watts), and the
+            // idle power is on top.
+            let e = hw
+                .electrical
+                .as_ref()
+                .expect("the robot file has a motor model");
+            let (battery, drives) = (e.mean_power_w.unwrap(), e.mean_motor_power_w.unwrap());
+            assert!(
+                drives > 10.0 && drives < 500.0,
+                "{}: drives {drives} W",
+                case.name
+            );
+            assert!((battery - drives - e.idle_power_w).abs() < 1e-9);
+            assert!(hw.electrical_note.is_none());
         }
         Some(freeze) => {
             // States stop at `freeze` (robot time ≈ runner time here): damping is sent within
