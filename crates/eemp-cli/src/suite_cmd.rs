@@ -147,11 +147,6 @@ fn rivals(cfg: &SuiteConfig) -> Vec<&MethodConfig> {
         .collect()
 }
 
-/// EEMP-Analytical: the first EEMP method that is not a table EEMP-RL learned.
-fn analytical(cfg: &SuiteConfig) -> Option<&MethodConfig> {
-    cfg.methods.iter().find(|m| m.kind == "eemp" && !m.eemp_rl)
-}
-
 /// 1 − CoT_EEMP / CoT_method per speed, under energy definition `def`; NaN where either has no
 /// CoT.
 fn lead_at(
@@ -200,81 +195,78 @@ fn lead_section(
     cells: &BTreeMap<CellKey, Cell>,
     key: &dyn Fn(&str, f64) -> CellKey,
 ) {
-    let Some(e) = analytical(cfg) else {
-        return;
-    };
+    // Every EEMP-Analytical method of the suite (the default one first, then variants such as
+    // the battery-aware controller).
+    let eemps: Vec<&MethodConfig> = cfg
+        .methods
+        .iter()
+        .filter(|m| m.kind == "eemp" && !m.eemp_rl)
+        .collect();
     let rivals = rivals(cfg);
-    if rivals.is_empty() {
+    if eemps.is_empty() || rivals.is_empty() {
         return;
     }
-    let low: Vec<f64> = speeds
-        .iter()
-        .copied()
-        .filter(|v| *v <= 0.6 + 1e-9)
-        .collect();
+    let low: Vec<f64> = speeds.iter().copied().filter(|v| *v <= 0.6 + 1e-9).collect();
     for (def, title) in [
-        (
-            0,
-            "the battery's energy: electrical CoT, the robot file's k, with idle power",
-        ),
-        (
-            EQ8,
-            "the paper's eq. 8 (net mechanical power; paper: 50.4 % at ≤ 0.6 m/s)",
-        ),
+        (0, "the battery's energy: electrical CoT, the robot file's k, with idle power"),
+        (EQ8, "the paper's eq. 8 (net mechanical power; paper: 50.4 % at ≤ 0.6 m/s)"),
     ] {
         let _ = writeln!(
             md,
             "## EEMP's lead in CoT over model-free RL under {title}\n\n\
-             1 − CoT({}) / CoT(method) per speed, means over the seeds that did not fall.\n",
-            e.name
+             1 − CoT(EEMP) / CoT(method) per speed, means over the seeds that did not fall.\n"
         );
-        let head: Vec<String> = rivals.iter().map(|m| format!("over {}", m.name)).collect();
-        let _ = writeln!(md, "| speed m/s | {} |", head.join(" | "));
-        let _ = writeln!(md, "|---|{}", "---|".repeat(rivals.len()));
-        for &v in speeds {
-            let cols: Vec<String> = rivals
+        for e in &eemps {
+            let _ = writeln!(md, "{}:\n", e.name);
+            let head: Vec<String> = rivals.iter().map(|m| format!("over {}", m.name)).collect();
+            let _ = writeln!(md, "| speed m/s | {} |", head.join(" | "));
+            let _ = writeln!(md, "|---|{}", "---|".repeat(rivals.len()));
+            for &v in speeds {
+                let cols: Vec<String> = rivals
+                    .iter()
+                    .map(|m| pct(lead_at(cells, key, &e.name, &m.name, v, def)))
+                    .collect();
+                let _ = writeln!(md, "| {v:.2} | {} |", cols.join(" | "));
+            }
+            let means: Vec<String> = rivals
                 .iter()
-                .map(|m| pct(lead_at(cells, key, &e.name, &m.name, v, def)))
+                .map(|m| {
+                    let x = finite_mean(
+                        low.iter()
+                            .map(|&v| lead_at(cells, key, &e.name, &m.name, v, def)),
+                    );
+                    format!("**{}**", pct(x))
+                })
                 .collect();
-            let _ = writeln!(md, "| {v:.2} | {} |", cols.join(" | "));
+            let _ = writeln!(md, "| mean ≤ 0.6 | {} |\n", means.join(" | "));
         }
-        let means: Vec<String> = rivals
-            .iter()
-            .map(|m| {
-                let x = finite_mean(
-                    low.iter()
-                        .map(|&v| lead_at(cells, key, &e.name, &m.name, v, def)),
-                );
-                format!("**{}**", pct(x))
-            })
-            .collect();
-        let _ = writeln!(md, "| mean ≤ 0.6 | {} |\n", means.join(" | "));
     }
     let _ = writeln!(
         md,
         "## The lead under every energy definition\n\n\
-         Mean over the speeds ≤ 0.6 m/s of 1 − CoT({}) / CoT(method). Electrical: each joint \
+         Mean over the speeds ≤ 0.6 m/s of 1 − CoT(EEMP) / CoT(method). Electrical: each joint \
          draws τq̇ + k·τ² under the robot file's `[motor]` model (k its heat coefficients, scaled \
          by 1/3 and 2 for the band), with or without the electronics' idle power; eq. 8: the \
-         paper's net mechanical power; Σ|τq̇|: absolute joint power (docs/energy.md).\n",
-        e.name
+         paper's net mechanical power; Σ|τq̇|: absolute joint power (docs/energy.md).\n"
     );
     let _ = writeln!(
         md,
-        "| over | {} |",
+        "| EEMP | over | {} |",
         ENERGY_DEFINITIONS.map(|d| d.label).join(" | ")
     );
-    let _ = writeln!(md, "|---|{}", "---|".repeat(ENERGY_DEFINITIONS.len()));
-    for m in &rivals {
-        let cols: Vec<String> = (0..ENERGY_DEFINITIONS.len())
-            .map(|d| {
-                pct(finite_mean(
-                    low.iter()
-                        .map(|&v| lead_at(cells, key, &e.name, &m.name, v, d)),
-                ))
-            })
-            .collect();
-        let _ = writeln!(md, "| {} | {} |", m.name, cols.join(" | "));
+    let _ = writeln!(md, "|---|---|{}", "---|".repeat(ENERGY_DEFINITIONS.len()));
+    for e in &eemps {
+        for m in &rivals {
+            let cols: Vec<String> = (0..ENERGY_DEFINITIONS.len())
+                .map(|d| {
+                    pct(finite_mean(
+                        low.iter()
+                            .map(|&v| lead_at(cells, key, &e.name, &m.name, v, d)),
+                    ))
+                })
+                .collect();
+            let _ = writeln!(md, "| {} | {} | {} |", e.name, m.name, cols.join(" | "));
+        }
     }
     // The ranking of every method by its mean CoT at ≤ 0.6 m/s, per definition.
     let ranking = |d: usize| -> Vec<String> {

@@ -27,15 +27,14 @@ impl Fnv {
     }
 }
 
-/// (robot, gait, estimator, pinned digest). The Go1's and Go2's free-gait tables, and the A1's
-/// battery tables at 0.3 m/s, give the free gait the trot's parameters, and with them it pairs
-/// the diagonal legs and walks the trot's bytes.
+/// (robot, gait, estimator, pinned digest). The Go1's and Go2's free-gait tables give the free
+/// gait the trot's parameters, and with them it pairs the diagonal legs and walks the trot's bytes.
 const PINS: [(&str, &str, &str, u64); 9] = [
-    ("a1", "trot", "ground-truth", 0x91bd4447ee23caa9),
-    ("a1", "walk", "ground-truth", 0x99b7302b5de06fcf),
-    ("a1", "free", "ground-truth", 0x91bd4447ee23caa9),
-    ("a1", "free", "kf", 0x4d6fbb4dd6bca5da),
-    ("a1", "trot", "kf", 0x4d6fbb4dd6bca5da),
+    ("a1", "trot", "ground-truth", 0x4f74e08fbda9e0ce),
+    ("a1", "walk", "ground-truth", 0x1f97c71e7e9cc472),
+    ("a1", "free", "ground-truth", 0xe80118ea7dc1e400),
+    ("a1", "free", "kf", 0x441b3080f63ecbb9),
+    ("a1", "trot", "kf", 0x44715f71003edb2a),
     ("go1", "trot", "kf", 0xa15e2e79e1e9f475),
     ("go1", "walk", "kf", 0x722ae2074e1c2474),
     ("go2", "trot", "kf", 0xb245dc670c437ffa),
@@ -112,34 +111,19 @@ fn every_shipped_robot_and_gait_walks_its_pinned_bytes() {
     );
 }
 
-/// The A1's walks as they were before the MPC weighed the motors' heat and the battery's tables
-/// became the defaults: the eq.-8 tables with `mpc.weight_heat = 0` walk the bytes they walked
-/// then (the pins of that code, unchanged).
+/// The battery-aware EEMP (docs/energy.md): the battery tables on the MPC that weighs the
+/// motors' heat. Its free gait pairs the diagonal legs with the trot's parameters at 0.3 m/s and
+/// walks the trot's bytes.
 #[test]
-fn with_the_heat_term_off_the_a1_walks_the_bytes_it_walked_before() {
+fn the_battery_aware_configuration_walks_its_pinned_bytes() {
     for (gait, table, estimator, pin) in [
-        (
-            "trot",
-            "tables/a1_trot_eq8.toml",
-            "ground-truth",
-            0x4f74e08fbda9e0ce_u64,
-        ),
-        (
-            "walk",
-            "tables/a1_walk.toml",
-            "ground-truth",
-            0x1f97c71e7e9cc472,
-        ),
-        (
-            "free",
-            "tables/a1_free_eq8.toml",
-            "ground-truth",
-            0xe80118ea7dc1e400,
-        ),
-        ("free", "tables/a1_free_eq8.toml", "kf", 0x441b3080f63ecbb9),
-        ("trot", "tables/a1_trot_eq8.toml", "kf", 0x44715f71003edb2a),
+        ("trot", "tables/a1_trot_battery.toml", "ground-truth", 0x91bd4447ee23caa9_u64),
+        ("free", "tables/a1_free_battery.toml", "ground-truth", 0x91bd4447ee23caa9),
+        ("free", "tables/a1_free_battery.toml", "kf", 0x4d6fbb4dd6bca5da),
+        ("walk", "tables/a1_walk.toml", "ground-truth", 0x99b7302b5de06fcf),
     ] {
-        let (d, _) = digest_of("a1", gait, estimator, table, &["mpc.weight_heat=0"]);
+        let (d, fell) = digest_of("a1", gait, estimator, table, &["mpc.weight_heat=0.002"]);
+        assert!(!fell, "{gait} {estimator} fell");
         assert_eq!(d, pin, "{gait} {estimator}: {d:#018x}");
     }
 }
