@@ -206,10 +206,20 @@ fn lead_section(
     if eemps.is_empty() || rivals.is_empty() {
         return;
     }
-    let low: Vec<f64> = speeds.iter().copied().filter(|v| *v <= 0.6 + 1e-9).collect();
+    let low: Vec<f64> = speeds
+        .iter()
+        .copied()
+        .filter(|v| *v <= 0.6 + 1e-9)
+        .collect();
     for (def, title) in [
-        (0, "the battery's energy: electrical CoT, the robot file's k, with idle power"),
-        (EQ8, "the paper's eq. 8 (net mechanical power; paper: 50.4 % at ≤ 0.6 m/s)"),
+        (
+            0,
+            "the battery's energy: electrical CoT, the robot file's k, with idle power",
+        ),
+        (
+            EQ8,
+            "the paper's eq. 8 (net mechanical power; paper: 50.4 % at ≤ 0.6 m/s)",
+        ),
     ] {
         let _ = writeln!(
             md,

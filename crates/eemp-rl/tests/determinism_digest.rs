@@ -117,10 +117,30 @@ fn every_shipped_robot_and_gait_walks_its_pinned_bytes() {
 #[test]
 fn the_battery_aware_configuration_walks_its_pinned_bytes() {
     for (gait, table, estimator, pin) in [
-        ("trot", "tables/a1_trot_battery.toml", "ground-truth", 0x91bd4447ee23caa9_u64),
-        ("free", "tables/a1_free_battery.toml", "ground-truth", 0x91bd4447ee23caa9),
-        ("free", "tables/a1_free_battery.toml", "kf", 0x4d6fbb4dd6bca5da),
-        ("walk", "tables/a1_walk.toml", "ground-truth", 0x99b7302b5de06fcf),
+        (
+            "trot",
+            "tables/a1_trot_battery.toml",
+            "ground-truth",
+            0x91bd4447ee23caa9_u64,
+        ),
+        (
+            "free",
+            "tables/a1_free_battery.toml",
+            "ground-truth",
+            0x91bd4447ee23caa9,
+        ),
+        (
+            "free",
+            "tables/a1_free_battery.toml",
+            "kf",
+            0x4d6fbb4dd6bca5da,
+        ),
+        (
+            "walk",
+            "tables/a1_walk.toml",
+            "ground-truth",
+            0x99b7302b5de06fcf,
+        ),
     ] {
         let (d, fell) = digest_of("a1", gait, estimator, table, &["mpc.weight_heat=0.002"]);
         assert!(!fell, "{gait} {estimator} fell");
