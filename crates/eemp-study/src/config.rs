@@ -1091,8 +1091,8 @@ seeds = [1, 0]
             ),
             (
                 "body_height_m = [0.31]",
-                "body_height_m = [0.35]",
-                &["grid.body_height_m[0]", "[0.28, 0.311]"],
+                "body_height_m = [0.45]",
+                &["grid.body_height_m", "legs reach [0.220, 0.400]"],
             ),
             (
                 "gaits = [\"walk\", \"trot\"]",
