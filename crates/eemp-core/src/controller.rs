@@ -228,7 +228,7 @@ impl LocomotionController {
                     let j = self
                         .kinematics
                         .foot_jacobian_body(leg, &state.joints[leg].q);
-                    crate::convex_mpc::heat_matrix(&j, &state.body.r_world_body, &k)
+                    crate::convex_mpc::heat_matrix_decoupled(&j, &state.body.r_world_body, &k)
                 })
             });
             let solution = self.mpc.solve(&MpcInput {

@@ -345,12 +345,10 @@ impl RobotConfig {
         Ok(config)
     }
 
-    /// The validated motor model of `[motor]`, if the file has one.
+    /// The motor model of `[motor]`, if the file has one and it is valid ([`Self::validate`]
+    /// refuses an invalid one by name).
     pub fn motor_model(&self) -> Option<crate::energy::MotorModel> {
-        self.motor.as_ref().map(|m| {
-            m.resolve()
-                .expect("RobotConfig::validate checked the motor section")
-        })
+        self.motor.as_ref().and_then(|m| m.resolve().ok())
     }
 
     pub fn validate(&self) -> Result<(), ConfigError> {

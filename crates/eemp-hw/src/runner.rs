@@ -145,9 +145,9 @@ pub struct HwReport {
     pub link: LinkStats,
     /// What the motion switcher said before the start (DDS with release).
     pub release: Option<String>,
-    /// What the battery paid under the robot file's motor model, from the robot's own torque
-    /// estimates and joint velocities at each state received; distance from the filter's
-    /// estimate. `None` without a `[motor]` section, with `electrical_note` saying so.
+    /// What the battery paid under the robot file's motor model over the whole run (standing
+    /// included), from the robot's own torque estimates and joint velocities at each state
+    /// received; the CoT's distance is the filter's estimate of the run's displacement. `None` without a `[motor]` section, with `electrical_note` saying so.
     pub electrical: Option<eemp_core::energy::ElectricalMetrics>,
     pub electrical_note: Option<&'static str>,
 }
@@ -261,7 +261,11 @@ pub fn run_hw(
     let mut energy = robot
         .motor_model()
         .map(eemp_core::energy::EnergyAccount::new);
-    let mut last_state_t: Option<f64> = None;
+    let mut last_state: Option<(
+        f64,
+        LegMap<nalgebra::Vector3<f64>>,
+        LegMap<nalgebra::Vector3<f64>>,
+    )> = None;
     let (mut start_xy, mut end_xy): (Option<[f64; 2]>, [f64; 2]) = (None, [0.0; 2]);
     let mut wire = match &opts.transport {
         Transport::Udp {
@@ -364,12 +368,13 @@ pub fn run_hw(
                 first_tick_s = sensed.tick_s;
             }
             let t = sensed.tick_s - first_tick_s;
-            // Each state charges the time since the one before (its torques held over it).
-            if let (Some(e), Some(prev)) = (energy.as_mut(), last_state_t) {
-                let qd = sensed.joints.map(|_, j| j.qd);
-                e.observe((t - prev).max(0.0), &qd, &sensed.tau);
+            // The time since the last state is charged at that state's torques and velocities
+            // (what the robot held over it).
+            let qd = sensed.joints.map(|_, j| j.qd);
+            if let (Some(e), Some((prev_t, prev_qd, prev_tau))) = (energy.as_mut(), &last_state) {
+                e.observe((t - prev_t).max(0.0), prev_qd, prev_tau);
             }
-            last_state_t = Some(t);
+            last_state = Some((t, qd, sensed.tau));
             let kf = match &mut kf {
                 Some(k) => k,
                 None => {

@@ -116,34 +116,37 @@ fn every_shipped_robot_and_gait_walks_its_pinned_bytes() {
 /// walks the trot's bytes.
 #[test]
 fn the_battery_aware_configuration_walks_its_pinned_bytes() {
+    let (mut got, mut mismatched) = (Vec::new(), false);
     for (gait, table, estimator, pin) in [
         (
             "trot",
             "tables/a1_trot_battery.toml",
             "ground-truth",
-            0x91bd4447ee23caa9_u64,
+            0x641b17c07593c2d0_u64,
         ),
         (
             "free",
             "tables/a1_free_battery.toml",
             "ground-truth",
-            0x91bd4447ee23caa9,
+            0x641b17c07593c2d0,
         ),
         (
             "free",
             "tables/a1_free_battery.toml",
             "kf",
-            0x4d6fbb4dd6bca5da,
+            0x79a74ea31073e788,
         ),
         (
             "walk",
             "tables/a1_walk.toml",
             "ground-truth",
-            0x99b7302b5de06fcf,
+            0xdf6af96642de152a,
         ),
     ] {
         let (d, fell) = digest_of("a1", gait, estimator, table, &["mpc.weight_heat=0.002"]);
         assert!(!fell, "{gait} {estimator} fell");
-        assert_eq!(d, pin, "{gait} {estimator}: {d:#018x}");
+        got.push(format!("{gait} {estimator}: {d:#018x}"));
+        mismatched |= d != pin;
     }
+    assert!(!mismatched, "digests now:\n{}", got.join("\n"));
 }

@@ -422,7 +422,7 @@ pub enum Objective {
     /// Eq. (8): the net mechanical power of all joints (the paper's).
     #[default]
     Eq8,
-    /// The drives' electrical power, Σ max(τq̇ + k·τ², 0) under the robot's `[motor]`.
+    /// The drives' electrical power under the robot's `[motor]` model (its bus model included).
     Electrical,
     /// The same plus the electronics' idle power: what the battery pays.
     ElectricalIdle,
@@ -560,6 +560,20 @@ impl SweepConfig {
                 .check_body_height("grid.body_height_m", *h)
                 .map_err(|e| v.error("grid.body_height_m", e.to_string()))?;
         }
+        if let Some(h) = grid.mpc_weights.heat {
+            if !(0.0..=1.0).contains(&h) {
+                return Err(v.error(
+                    "grid.mpc_weights.heat",
+                    format!("{h} is out of range: allowed [0, 1] (1/W)"),
+                ));
+            }
+            if h > 0.0 && robot.motor_model().is_none() {
+                return Err(v.error(
+                    "grid.mpc_weights.heat",
+                    format!("{h} weighs the motors' heat: the robot file has no [motor] section"),
+                ));
+            }
+        }
         if grid.checked_run_count().is_none_or(|n| n > MAX_RUNS) {
             let mut axes: Vec<usize> = grid.point_axes().to_vec();
             axes.push(grid.seeds.len());
@@ -578,6 +592,14 @@ impl SweepConfig {
             ));
         }
         let selection = v.selection(&raw.selection)?;
+        if selection.objective != Objective::Eq8 && robot.motor_model().is_none() {
+            return Err(v.error(
+                "selection.objective",
+                "an electrical objective needs the robot's motor model: the robot file has no \
+                 [motor] section"
+                    .into(),
+            ));
+        }
         Ok(SweepConfig { grid, selection })
     }
 

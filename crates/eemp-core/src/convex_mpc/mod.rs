@@ -45,10 +45,9 @@ pub struct MpcConfig {
     pub weight_velocity: [f64; 3],
     /// Weight on every squared force component (1/N²).
     pub weight_force: f64,
-    /// Weight on the stance legs' Joule heat per horizon step (1/W): Σ Mᵢᵢ fᵢ² over each force's
-    /// components, the diagonal of the heat fᵀ M f = Σ k·τ² of the joint torques τ = Jᵀ Rᵀ f
-    /// that carry it (M = R J K Jᵀ Rᵀ, [`heat_matrix`]; K the robot file's heat coefficients,
-    /// J the leg Jacobian at the solve's configuration). 0: off (the paper's
+    /// Weight on the stance legs' Joule heat per horizon step (1/W): each force's heat with
+    /// its components taken apart in the trunk frame ([`heat_matrix_decoupled`]; K the robot
+    /// file's heat coefficients, J the leg Jacobian at the solve's configuration). 0: off (the paper's
     /// force-norm cost alone); needs a robot file with `[motor]`. `None`: the robot file's
     /// `[control] mpc_weight_heat`, else 0.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -136,6 +135,24 @@ pub struct MpcInput<'a> {
     /// Per foot, the Joule heat a world-frame force f costs, fᵀ M f in W (M = R J K Jᵀ Rᵀ,
     /// [`heat_matrix`]), weighed by `weight_heat`; `None`: no heat term.
     pub heat: Option<&'a LegMap<Matrix3<f64>>>,
+}
+
+/// The heat the MPC charges a leg: the diagonal of the heat matrix in the trunk frame, J K Jᵀ,
+/// turned back to the world frame: R diag(J K Jᵀ) Rᵀ (W/N²). Each component of the force along
+/// the trunk's axes pays the heat of the torques that carry it; the cross terms are left out
+/// because they pay the QP to lean each leg's force along the leg (an inward squeeze between
+/// the feet, which costs no trunk motion), trading torque for friction, and the friction a
+/// floor gives is what slip handling only learns by slipping. Taken in the trunk frame, so the
+/// same gait is charged the same whatever its heading.
+pub fn heat_matrix_decoupled(
+    jacobian_body: &Matrix3<f64>,
+    r_world_body: &nalgebra::UnitQuaternion<f64>,
+    heat_coefficient_w_per_nm2: &[f64; 3],
+) -> Matrix3<f64> {
+    let k = Matrix3::from_diagonal(&Vector3::from(*heat_coefficient_w_per_nm2));
+    let body = Matrix3::from_diagonal(&(jacobian_body * k * jacobian_body.transpose()).diagonal());
+    let r = r_world_body.to_rotation_matrix();
+    r.matrix() * body * r.matrix().transpose()
 }
 
 /// The heat matrix M of one leg: a ground force `f_world` on its foot is held by the joint
@@ -337,11 +354,8 @@ impl ConvexMpc {
                 p[i * nv + j] = self.h_full[(*fi, *fj)];
             }
         }
-        // The stance legs' heat, per (step, foot in contact), from the diagonal of M: each force
-        // component pays the heat of the torques that carry it. M's cross terms are left out:
-        // they pay the QP to lean each leg's force along the leg (inward squeeze between the
-        // feet, which costs no trunk motion), which trades torque for friction, and the friction
-        // a floor gives is what slip handling only learns by slipping. Still convex.
+        // The stance legs' heat, one 3×3 block per (step, foot in contact), as the caller gives
+        // it ([`heat_matrix_decoupled`]). Still convex (each block is positive semi-definite).
         if let (Some(heat), Some(w)) = (input.heat, self.config.weight_heat) {
             if w > 0.0 {
                 for (bi, (k, leg)) in blocks.iter().enumerate() {
@@ -349,7 +363,9 @@ impl ConvexMpc {
                         continue;
                     }
                     for r in 0..3 {
-                        p[(3 * bi + r) * nv + 3 * bi + r] += w * heat[*leg][(r, r)];
+                        for c in 0..3 {
+                            p[(3 * bi + r) * nv + 3 * bi + c] += w * heat[*leg][(r, c)];
+                        }
                     }
                 }
             }

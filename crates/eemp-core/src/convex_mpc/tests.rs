@@ -427,3 +427,29 @@ fn the_heat_matrix_is_the_heat_of_the_torques_that_hold_a_force() {
     let m = heat_matrix(&j, &r, &k);
     assert_relative_eq!(f.dot(&(m * f)), by_hand, max_relative = 1e-12);
 }
+
+#[test]
+fn the_decoupled_heat_is_the_trunk_frame_diagonal_whatever_the_heading() {
+    let j = Matrix3::new(0.0, -0.21, -0.1, 0.2, 0.01, 0.0, 0.05, 0.1, 0.18);
+    let k = [0.3, 0.5, 0.2];
+    let level = heat_matrix_decoupled(&j, &UnitQuaternion::identity(), &k);
+    let full = heat_matrix(&j, &UnitQuaternion::identity(), &k);
+    // Level and facing +x: the full matrix's diagonal, no cross terms.
+    for r in 0..3 {
+        for c in 0..3 {
+            let want = if r == c { full[(r, c)] } else { 0.0 };
+            assert_relative_eq!(level[(r, c)], want, epsilon = 1e-15);
+        }
+    }
+    // Turned by any yaw, a force turned with it costs the same.
+    let f = Vector3::new(3.0, -2.0, 30.0);
+    for yaw in [0.3, std::f64::consts::FRAC_PI_4, 2.0] {
+        let r = UnitQuaternion::from_euler_angles(0.0, 0.0, yaw);
+        let m = heat_matrix_decoupled(&j, &r, &k);
+        assert_relative_eq!(
+            (r * f).dot(&(m * (r * f))),
+            f.dot(&(level * f)),
+            max_relative = 1e-12
+        );
+    }
+}
