@@ -152,6 +152,9 @@ pub struct HwReport {
     pub electrical_note: Option<&'static str>,
 }
 
+/// One vector per leg (joint velocities or torques).
+type JointVectors = LegMap<nalgebra::Vector3<f64>>;
+
 /// The runner's end of the wire.
 enum Wire {
     Udp(Box<Link>, SocketAddr),
@@ -261,11 +264,8 @@ pub fn run_hw(
     let mut energy = robot
         .motor_model()
         .map(eemp_core::energy::EnergyAccount::new);
-    let mut last_state: Option<(
-        f64,
-        LegMap<nalgebra::Vector3<f64>>,
-        LegMap<nalgebra::Vector3<f64>>,
-    )> = None;
+    // (time, joint velocities, torque estimates) of the last state received.
+    let mut last_state: Option<(f64, JointVectors, JointVectors)> = None;
     let (mut start_xy, mut end_xy): (Option<[f64; 2]>, [f64; 2]) = (None, [0.0; 2]);
     let mut wire = match &opts.transport {
         Transport::Udp {
