@@ -49,7 +49,8 @@ pub fn write_report(dir: &Path, tables_out: Option<&Path>) -> Result<Vec<String>
             robot.name
         ));
     }
-    let rows = objective.measure().apply(&loaded.rows, idle.as_ref());
+    let rows = eemp_study::sensitivity::CotMeasure::of_objective(objective)
+        .apply(&loaded.rows, idle.as_ref());
     let study = Study::analyse(&rows, config.selection);
     let mut written: Vec<String> = Vec::new();
     let mut write_tables = |to: &Path| {

@@ -249,13 +249,12 @@ impl EnergyAccount {
         self.time_s += dt;
     }
 
-    /// The figures over the observed time, for a trunk of `mass_kg` that travelled
+    /// The figures over the observed time, for a robot of weight `weight_n` (m·g) that travelled
     /// `travelled_m` (straight line; `None` when it did not travel far enough for a CoT).
-    pub fn finish(&self, mass_kg: f64, travelled_m: Option<f64>) -> ElectricalMetrics {
+    pub fn finish(&self, weight_n: f64, travelled_m: Option<f64>) -> ElectricalMetrics {
         let idle_j = self.model.idle_power_w * self.time_s;
         let motor_j = self.motor_energy_j[1];
         let energy_j = motor_j + idle_j;
-        let weight_n = mass_kg * crate::convex_mpc::model::GRAVITY;
         let cot = |e: f64| travelled_m.map(|d| e / (weight_n * d));
         ElectricalMetrics {
             heat_coefficient_w_per_nm2: self.model.heat_coefficient_w_per_nm2,
@@ -392,12 +391,12 @@ mod tests {
         for _ in 0..2000 {
             acc.observe(1e-3, &qd, &tau);
         }
-        let e = acc.finish(10.0, Some(4.0));
+        let g = crate::convex_mpc::model::GRAVITY;
+        let e = acc.finish(10.0 * g, Some(4.0));
         assert!((e.motor_energy_j - 20.0).abs() < 1e-9);
         assert!((e.heat_j - 20.0).abs() < 1e-9);
         assert!((e.energy_j - 30.0).abs() < 1e-9);
         assert!((e.mean_power_w.unwrap() - 15.0).abs() < 1e-9);
-        let g = crate::convex_mpc::model::GRAVITY;
         assert!((e.cot.unwrap() - 30.0 / (10.0 * g * 4.0)).abs() < 1e-12);
         assert!((e.cot_motors.unwrap() - 20.0 / (10.0 * g * 4.0)).abs() < 1e-12);
         // 30 J over 4 m = 7.5 J/m = 2.083 Wh/km.
@@ -405,7 +404,7 @@ mod tests {
         // The band: heat scales linearly without motion.
         let band: Vec<f64> = e.band.iter().map(|b| b.cot_motors.unwrap()).collect();
         assert!((band[0] * 3.0 - band[1]).abs() < 1e-12 && (band[2] - 2.0 * band[1]).abs() < 1e-12);
-        assert_eq!(acc.finish(10.0, None).cot, None);
+        assert_eq!(acc.finish(10.0 * g, None).cot, None);
     }
 
     fn config(text: &str) -> Result<MotorModel, String> {

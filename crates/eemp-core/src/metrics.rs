@@ -182,7 +182,7 @@ impl MetricsAccumulator {
         let electrical = self
             .electrical
             .as_ref()
-            .map(|e| e.finish(mass_kg, travelled_m));
+            .map(|e| e.finish(mass_kg * GRAVITY, travelled_m));
         WalkMetrics {
             distance_m: distance,
             path_length_m: self.path_m,

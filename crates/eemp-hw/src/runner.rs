@@ -491,7 +491,12 @@ pub fn run_hw(
     let travelled_m = start_xy
         .map(|a| (end_xy[0] - a[0]).hypot(end_xy[1] - a[1]))
         .filter(|d| *d >= eemp_core::metrics::MIN_COT_DISTANCE_M);
-    report.electrical = energy.map(|e| e.finish(robot.total_mass_kg(), travelled_m));
+    report.electrical = energy.map(|e| {
+        e.finish(
+            robot.total_mass_kg() * eemp_core::convex_mpc::model::GRAVITY,
+            travelled_m,
+        )
+    });
     report.electrical_note = report
         .electrical
         .is_none()

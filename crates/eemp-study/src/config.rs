@@ -428,18 +428,6 @@ pub enum Objective {
     ElectricalIdle,
 }
 
-impl Objective {
-    /// The CoT definition it selects on.
-    pub fn measure(self) -> crate::sensitivity::CotMeasure {
-        use crate::sensitivity::CotMeasure;
-        match self {
-            Objective::Eq8 => CotMeasure::Eq8,
-            Objective::Electrical => CotMeasure::Electrical,
-            Objective::ElectricalIdle => CotMeasure::ElectricalIdle,
-        }
-    }
-}
-
 impl Default for SelectionConfig {
     fn default() -> Self {
         SelectionConfig {

@@ -299,11 +299,14 @@ pub fn write_tables(
         };
         let objective_note = match sel.objective {
             crate::config::Objective::Eq8 => String::new(),
-            o => format!(
-                "# cot is the {} CoT (selection.objective = \"{}\"), not eq. (8)'s.\n",
-                o.measure().describe(),
-                o.measure().name()
-            ),
+            o => {
+                let m = crate::sensitivity::CotMeasure::of_objective(o);
+                format!(
+                    "# cot is the {} CoT (selection.objective = \"{}\"), not eq. (8)'s.\n",
+                    m.describe(),
+                    m.name()
+                )
+            }
         };
         let text = format!(
             "# EEMP-Analytical lookup table for the {} gait, selected by `eemp sweep report` from\n\

@@ -88,6 +88,16 @@ impl CotMeasure {
         }
     }
 
+    /// The definition a sweep's selection objective selects on.
+    pub fn of_objective(o: crate::config::Objective) -> CotMeasure {
+        use crate::config::Objective;
+        match o {
+            Objective::Eq8 => CotMeasure::Eq8,
+            Objective::Electrical => CotMeasure::Electrical,
+            Objective::ElectricalIdle => CotMeasure::ElectricalIdle,
+        }
+    }
+
     /// A run's CoT under this definition (`idle`: the robot's idle charge; without it the
     /// idle-power measure is absent).
     pub fn of(self, row: &ResultRow, idle: Option<&IdleCharge>) -> Option<f64> {
