@@ -3,16 +3,16 @@
 
 use crate::link_arg::{LinkArgs, Resolved};
 use eemp_core::estimator::KfConfig;
-use eemp_core::hardware::a1_protocol::LowState;
-use eemp_core::hardware::safety::SafetyConfig;
 use eemp_core::leg::{Leg, LegMap};
 use eemp_core::planner::{Gait, PlannerConfig, PlannerParams, VelocityCommand};
 use eemp_core::robot::RobotConfig;
+use eemp_core::safety::SafetyConfig;
 use eemp_hw::dds::{ROBOT_DOMAIN_ID, SIM_DOMAIN_ID};
 use eemp_hw::link::{Faults, Link};
 use eemp_hw::motion_switcher::ReleaseOptions;
 use eemp_hw::runner::{run_hw, HwOptions, TorqueSpike, Transport};
 use eemp_hw::sim_robot::{run_sim_robot, RobotWire, SimRobotOptions};
+use eemp_hw::wire::a1_protocol::LowState;
 use eemp_rl::run::{BuiltWalk, Sensing, WalkDescription};
 use eemp_sim::walk::{StartPose, WalkSpec};
 use std::io::Write;
@@ -102,7 +102,7 @@ pub struct HwArgs {
     /// Control rate, Hz.
     #[arg(long, default_value_t = 500.0)]
     pub rate: f64,
-    /// Safety settings (TOML, `eemp_core::hardware::safety::SafetyConfig`; default values
+    /// Safety settings (TOML, `eemp_core::safety::SafetyConfig`; default values
     /// otherwise).
     #[arg(long)]
     pub safety: Option<PathBuf>,

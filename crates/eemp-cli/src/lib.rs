@@ -7,12 +7,10 @@ pub mod bench_estimator;
 pub mod bench_rl;
 pub mod bench_viewer;
 pub mod config_cmd;
-pub mod free_arg;
 #[cfg(feature = "hardware")]
 pub mod hw_cmd;
 #[cfg(feature = "hardware")]
 pub mod link_arg;
-pub mod mpc_arg;
 pub mod output;
 pub mod paper_report;
 pub mod params_arg;
@@ -36,4 +34,3 @@ pub mod train_cmd;
 pub mod video;
 pub mod walk_cmd;
 pub mod walk_outputs;
-pub mod walk_support_arg;

@@ -315,7 +315,6 @@ mod tests {
             "rerun_connect",
             "rerun_serve",
             "rerun_hz",
-            "rerun_python",
             "help",
         ];
         let replaced = eemp_cli::walk_cmd::RUN_FILE_REPLACES;

@@ -15,7 +15,4 @@ pub struct ParamsArgs {
     /// Walk on the paper's Table II constants instead of the per-speed table.
     #[arg(long, conflicts_with_all = ["params", "params_table"])]
     pub table_ii: bool,
-    /// Factor on V·ΔT in eq. (6): 0.5 = eq. (6), 1.0 = Algorithm 1 (default: the table's, else 0.5).
-    #[arg(long)]
-    pub progress_factor: Option<f64>,
 }

@@ -312,7 +312,6 @@ const OUTPUT_OPTIONS: &[(&str, bool)] = &[
     ("--rerun-connect", true),
     ("--rerun-serve", true),
     ("--rerun-hz", true),
-    ("--rerun-python", true),
 ];
 
 /// The walk's arguments without its outputs.
@@ -415,15 +414,6 @@ fn resimulate(args: &ReplayArgs, trace: &std::path::Path) -> Result<Result<(), S
     }
     if let Some(p) = r.rerun_serve {
         extra.extend(["--rerun-serve".into(), p.to_string()]);
-    }
-    // The walk runs again in its own folder: the recorder's Python as this command has it.
-    if let Some(py) = &r.rerun_python {
-        let py = if py.components().count() > 1 {
-            std::path::absolute(py).map_err(|e| format!("{}: {e}", py.display()))?
-        } else {
-            py.clone() // a name looked up on PATH
-        };
-        extra.extend(["--rerun-python".into(), py.display().to_string()]);
     }
     let ok = walk(&tmp.join("record"), &extra)?;
     let _ = std::fs::remove_dir_all(&tmp);

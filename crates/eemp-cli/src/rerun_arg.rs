@@ -25,10 +25,10 @@ pub struct RerunArgs {
     /// at the step they happen whatever it is.
     #[arg(long, default_value_t = 100.0)]
     pub rerun_hz: f64,
-    /// Record through this Python's rerun-sdk (pip install rerun-sdk==0.36.3). Default:
-    /// $EEMP_PYTHON or python3; a build with Rerun's Rust SDK (`make viewer`) uses that unless
-    /// this is given.
-    #[arg(long, value_name = "PY")]
+    /// Record through this Python's rerun-sdk in place of the build's recorder (`eemp bench
+    /// viewer` compares them). Not an option: the command line's Python is $EEMP_PYTHON, else
+    /// python3.
+    #[arg(skip)]
     pub rerun_python: Option<PathBuf>,
 }
 

@@ -7,12 +7,10 @@
 //! drops; runs with a row are not run again. `eemp compare` and `eemp robustness` are this
 //! runner with their own configs and reports.
 
-use crate::state_source_arg::KfOptions;
 use eemp_core::planner::params_table::ParamsTable;
-use eemp_core::planner::{FreePairing, Gait, PlannerConfig, WalkSupport};
+use eemp_core::planner::Gait;
 use eemp_core::robot::RobotConfig;
 use eemp_rl::run::{Sensing, WalkDescription};
-use eemp_sim::closed_loop::StateSource;
 use eemp_sim::scenario::Scenario;
 use eemp_sim::walk::VelocityProfile;
 use rayon::prelude::*;
@@ -41,79 +39,15 @@ pub struct MethodConfig {
     /// method on ground truth beside it on the filter).
     #[serde(default)]
     pub estimator: Option<String>,
-    /// EEMP: slip handling (`eemp_core::slip`); absent: the gait's default (on; the walk's below
-    /// 0.6 m/s, `SlipConfig::default_for`).
-    #[serde(default)]
-    pub adapt_friction: Option<bool>,
-    /// EEMP with slip handling: the friction coefficient it starts from (absent: the robot
-    /// file's, else `slip::CAUTIOUS_START`).
-    #[serde(default)]
-    pub initial_friction: Option<f64>,
-    /// EEMP with slip handling: the coefficient's floor (`slip.min_friction`; absent: the
-    /// gait's, 0.15 for the trot and the free gait, 0.2 for the walk).
-    #[serde(default)]
-    pub min_friction: Option<f64>,
-    /// EEMP with slip handling: the cap on raises after a slip (`slip.hold_cap_after_slip`;
-    /// absent: its default; 0: off).
-    #[serde(default)]
-    pub hold_cap_after_slip: Option<f64>,
-    /// EEMP with slip handling: the fraction of the asked ratio a hold raises the coefficient to
-    /// (`slip.hold_raise_fraction`; absent: the gait's, 0.8 for the trot and the free gait, 1 for
-    /// the walk).
-    #[serde(default)]
-    pub hold_raise_fraction: Option<f64>,
-    /// EEMP with slip handling: the reference speed above which it rests at the nominal
-    /// coefficient (`slip.max_speed_mps`; absent: the gait's, the walk's 0.6; 0: no limit).
-    #[serde(default)]
-    pub slip_max_speed_mps: Option<f64>,
-    /// EEMP with slip handling: the coefficient below which the speed is capped for a floor
-    /// found slippery (`slip.slow_below_friction`; absent: the gait's, the walk's 0.205; 0: never).
-    #[serde(default)]
-    pub slow_below_friction: Option<f64>,
-    /// EEMP with slip handling: that cap, m/s (`slip.slow_speed_mps`; absent: 0.3; refused
-    /// where the cap is off, e.g. the trot without `slow_below_friction`).
-    #[serde(default)]
-    pub slow_speed_mps: Option<f64>,
-    /// EEMP: the ellipses' cap by the slip detector's coefficient
-    /// (`planner.ellipse_friction_factor`; absent: the gait's, 1 for the trot and the free gait,
-    /// 0 for the walk; 0: off).
-    #[serde(default)]
-    pub ellipse_friction_factor: Option<f64>,
-    /// EEMP: the capture step's cap by the MPC's coefficient
-    /// (`planner.touchdown_friction_factor`; absent: the gait's, 0.5 for the trot and the free
-    /// gait, 0 for the walk; 0: off).
-    #[serde(default)]
-    pub touchdown_friction_factor: Option<f64>,
-    /// On the filter: its velocity-jump threshold, m/s (`KfConfig::velocity_jump_mps`; 0: off;
-    /// absent: the filter's default).
-    #[serde(default)]
-    pub kf_velocity_jump_mps: Option<f64>,
-    /// On the filter: the share of a jump that marks a leg dragged along by a push
-    /// (`KfConfig::velocity_jump_dragged_fraction`; 0: off; absent: the filter's default).
-    #[serde(default)]
-    pub kf_dragged_fraction: Option<f64>,
-    /// On the filter: its leg-outlier threshold, m/s (`KfConfig::leg_outlier_mps`; 0: off;
-    /// absent: the filter's default).
-    #[serde(default)]
-    pub kf_leg_outlier_mps: Option<f64>,
-    /// EEMP's free gait: when a diagonal partner swings along (`FreePairing`; absent: its
-    /// default; `{ pair_tolerance = 0.0, support_check = false }` is the earlier rule).
-    #[serde(default)]
-    pub free_pairing: Option<FreePairing>,
-    /// EEMP's walk: its support check (`WalkSupport`; absent: its default; `{ check = false }`
-    /// is the paper's fixed order).
-    #[serde(default)]
-    pub walk_support: Option<WalkSupport>,
-    /// EEMP: the MPC's horizon in steps of its dt (absent: `MpcConfig`'s default).
-    #[serde(default)]
-    pub mpc_horizon: Option<usize>,
     /// EEMP whose free-gait table EEMP-RL learned (CMA-ES's re-tuned table,
     /// `policies/a1_eemp_rl_cmaes_entry.toml`): the reports count it as EEMP-RL, against the
     /// free gait's table. Kind eemp, gait free.
     #[serde(default)]
     pub eemp_rl: bool,
-    /// Controller settings as `key=value`, applied last (`eemp walk --set`; `eemp config
-    /// show` lists the keys).
+    /// Controller settings as `key=value` over the gait's and the robot's defaults (`eemp walk
+    /// --set`; `eemp config show` lists the keys): e.g. `["slip.adapt_friction=false",
+    /// "mpc.horizon=8"]`. A learned method takes only `filter.*` (a policy runs with the
+    /// controller it was trained with).
     #[serde(default)]
     pub set: Vec<String>,
 }
@@ -124,43 +58,52 @@ impl MethodConfig {
         self.kind == "eemp-rl" || self.eemp_rl
     }
 
-    /// The controller settings of its own only an EEMP method may have (besides
-    /// `adapt_friction`), each with whether it is set: a policy refuses them, and the table
-    /// EEMP-RL is measured against has none.
-    pub fn eemp_controller_settings(&self) -> [(bool, &'static str); 12] {
-        [
-            (self.initial_friction.is_some(), "initial_friction"),
-            (self.min_friction.is_some(), "min_friction"),
-            (self.hold_cap_after_slip.is_some(), "hold_cap_after_slip"),
-            (self.hold_raise_fraction.is_some(), "hold_raise_fraction"),
-            (self.slip_max_speed_mps.is_some(), "slip_max_speed_mps"),
-            (self.slow_below_friction.is_some(), "slow_below_friction"),
-            (self.slow_speed_mps.is_some(), "slow_speed_mps"),
-            (
-                self.ellipse_friction_factor.is_some(),
-                "ellipse_friction_factor",
-            ),
-            (
-                self.touchdown_friction_factor.is_some(),
-                "touchdown_friction_factor",
-            ),
-            (self.free_pairing.is_some(), "free_pairing"),
-            (self.walk_support.is_some(), "walk_support"),
-            (self.mpc_horizon.is_some(), "mpc_horizon"),
-        ]
+    /// The value the method's `set` gives `key` (its last assignment), as written.
+    pub fn set_of(&self, key: &str) -> Option<&str> {
+        self.set.iter().rev().find_map(|s| {
+            let (k, v) = s.split_once('=')?;
+            (k.trim() == key).then_some(v.trim())
+        })
+    }
+
+    /// Slip handling as the method's `set` says (`slip.adapt_friction`); None: the gait's
+    /// default.
+    pub fn adapt_friction(&self) -> Option<bool> {
+        self.set_of("slip.adapt_friction")
+            .and_then(|v| v.parse().ok())
+    }
+
+    /// The method's settings other than those of `keys`, and other than the filter's: what
+    /// makes its controller differ from the gait's default one.
+    pub fn controller_sets_besides(&self, keys: &[&str]) -> Vec<&str> {
+        self.set
+            .iter()
+            .map(String::as_str)
+            .filter(|s| {
+                let k = s.split_once('=').map_or(*s, |(k, _)| k).trim();
+                !keys.contains(&k) && !k.starts_with("filter.")
+            })
+            .collect()
+    }
+
+    /// Builds the method's walk on the flat floor at 0.3 m/s, as every run builds it, so a bad
+    /// setting or table is refused before any run.
+    fn check_walk(&self, suite: &SuiteConfig, robot: &RobotConfig) -> Result<(), String> {
+        let flat = ScenarioConfig {
+            name: "flat".into(),
+            file: None,
+            speeds_mps: vec![0.3],
+            profile: None,
+        };
+        self.walk(suite, &flat, 0.3, 1, robot)
+            .build()
+            .map(|_| ())
+            .map_err(|e| format!("method '{}': {e}", self.name))
     }
 
     /// The method's estimator: its own or the suite's.
     pub fn estimator<'a>(&'a self, suite: &'a SuiteConfig) -> &'a str {
         self.estimator.as_deref().unwrap_or(&suite.estimator)
-    }
-
-    fn kf_options(&self) -> KfOptions {
-        KfOptions {
-            velocity_jump_mps: self.kf_velocity_jump_mps,
-            velocity_jump_dragged_fraction: self.kf_dragged_fraction,
-            leg_outlier_mps: self.kf_leg_outlier_mps,
-        }
     }
 
     /// The method's walk at `speed_mps` (or the scenario's profile) and `seed`: the run
@@ -184,7 +127,6 @@ impl MethodConfig {
                 estimator: self.estimator(suite).into(),
                 ideal_sensors: false,
                 seed,
-                kf: self.kf_options(),
             },
             speed_mps,
             duration_s: suite.duration_s,
@@ -197,48 +139,10 @@ impl MethodConfig {
                 Some(self.table.clone().unwrap_or_else(|| {
                     robot.shipped_table_path(gait.parse().unwrap_or(Gait::Trot))
                 }));
-            d.adapt_friction = self.adapt_friction;
-            d.initial_friction = self.initial_friction;
-            d.min_friction = self.min_friction;
-            d.hold_cap_after_slip = self.hold_cap_after_slip;
-            d.hold_raise_fraction = self.hold_raise_fraction;
-            d.slip_max_speed_mps = self.slip_max_speed_mps;
-            d.slow_below_friction = self.slow_below_friction;
-            d.slow_speed_mps = self.slow_speed_mps;
-            d.mpc_horizon = self.mpc_horizon;
-            if let Some(f) = self.ellipse_friction_factor {
-                d.ellipse_friction_factor = Some(f);
-            }
-            d.touchdown_friction_factor = self.touchdown_friction_factor;
-            if let Some(p) = self.free_pairing {
-                d.free_pair_tolerance = Some(p.pair_tolerance);
-                d.free_support_margin_m = Some(p.support_margin_m);
-                d.free_support_check = Some(p.support_check);
-            }
-            if let Some(w) = self.walk_support {
-                d.walk_support_margin_m = w.check.then_some(w.margin_m);
-                d.walk_support_max_speed_mps = w.check.then_some(w.max_speed_mps);
-                d.walk_support_check = Some(w.check);
-            }
-        }
-        if self.kind == "eemp" {
             d.gait = gait;
         }
         d.set = self.set.clone();
         d
-    }
-
-    /// Applies the method's filter settings to `source`.
-    fn apply_kf_options(&self, source: &mut StateSource) -> Result<(), String> {
-        crate::state_source_arg::with_kf_options(
-            source,
-            &self.kf_options(),
-            [
-                &format!("method '{}': kf_velocity_jump_mps", self.name),
-                &format!("method '{}': kf_dragged_fraction", self.name),
-                &format!("method '{}': kf_leg_outlier_mps", self.name),
-            ],
-        )
     }
 }
 
@@ -449,10 +353,8 @@ impl SuiteConfig {
         let robot = self.robot_config()?;
         crate::state_source_arg::state_source(&self.estimator, false, 0, &robot)?;
         for m in &self.methods {
-            let mut source =
-                crate::state_source_arg::state_source(m.estimator(self), false, 0, &robot)
-                    .map_err(|e| format!("method '{}': {e}", m.name))?;
-            m.apply_kf_options(&mut source)?;
+            crate::state_source_arg::state_source(m.estimator(self), false, 0, &robot)
+                .map_err(|e| format!("method '{}': {e}", m.name))?;
         }
         // Run ids must be unique (resume finds runs by id).
         let mut seeds = self.seeds.clone();
@@ -509,54 +411,15 @@ impl SuiteConfig {
                         }
                         // Compared with the plain free table: the same controller, or the
                         // comparison is not like for like.
-                        let kf = [
-                            (m.kf_velocity_jump_mps.is_some(), "kf_velocity_jump_mps"),
-                            (m.kf_dragged_fraction.is_some(), "kf_dragged_fraction"),
-                            (m.kf_leg_outlier_mps.is_some(), "kf_leg_outlier_mps"),
-                        ];
-                        if let Some((_, key)) = m
-                            .eemp_controller_settings()
-                            .into_iter()
-                            .chain(kf)
-                            .find(|(set, _)| *set)
-                        {
+                        if let Some(s) = m.set.first() {
                             return Err(format!(
-                                "method '{}': {key} is not for eemp_rl = true (a learned table \
+                                "method '{}': set {s} is not for eemp_rl = true (a learned table \
                                  runs the free table's controller)",
                                 m.name
                             ));
                         }
                     }
-                    if m.free_pairing.is_some() && g != Gait::Free {
-                        return Err(format!(
-                            "method '{}': free_pairing is for gait free, not {g}",
-                            m.name
-                        ));
-                    }
-                    if m.walk_support.is_some() && g != Gait::Walk {
-                        return Err(format!(
-                            "method '{}': walk_support is for gait walk, not {g}",
-                            m.name
-                        ));
-                    }
-                    PlannerConfig {
-                        gait: g,
-                        free_pairing: m.free_pairing.unwrap_or_default(),
-                        walk_support: m.walk_support.unwrap_or_default(),
-                        ..Default::default()
-                    }
-                    .validate()
-                    .map_err(|e| format!("method '{}': {e}", m.name))?;
-                    // The rest (slip settings, the table's parameters) as every run builds it.
-                    let flat = ScenarioConfig {
-                        name: "flat".into(),
-                        file: None,
-                        speeds_mps: vec![0.3],
-                        profile: None,
-                    };
-                    m.walk(self, &flat, 0.3, 1, &robot)
-                        .build()
-                        .map_err(|e| format!("method '{}': {e}", m.name))?;
+                    m.check_walk(self, &robot)?;
                 }
                 k @ ("model-free" | "imitation" | "eemp-rl") => {
                     if m.eemp_rl {
@@ -566,12 +429,8 @@ impl SuiteConfig {
                             m.name
                         ));
                     }
-                    let slip = (m.adapt_friction.is_some(), "adapt_friction");
                     let planner = [(m.gait.is_some(), "gait"), (m.table.is_some(), "table")];
-                    for (set, key) in std::iter::once(slip)
-                        .chain(planner)
-                        .chain(m.eemp_controller_settings())
-                    {
+                    for (set, key) in planner {
                         if set {
                             return Err(format!(
                                 "method '{}': {key} is for kind eemp (a policy runs with the \
@@ -585,6 +444,7 @@ impl SuiteConfig {
                     })?;
                     eemp_rl::run::check_policy(k, p, &robot, self.allow_robot_mismatch)
                         .map_err(|e| format!("method '{}': {e}", m.name))?;
+                    m.check_walk(self, &robot)?;
                 }
                 other => {
                     return Err(format!(

@@ -1022,18 +1022,17 @@ fn rl_against_table<'a>(
         m.kind == "eemp"
             && !m.eemp_rl
             && m.gait.as_deref() == Some("free")
-            && m.adapt_friction == slip
-            && m.eemp_controller_settings().iter().all(|(set, _)| !set)
-            && m.kf_velocity_jump_mps.is_none()
-            && m.kf_dragged_fraction.is_none()
-            && m.kf_leg_outlier_mps.is_none()
+            && m.adapt_friction() == slip
+            && m.set
+                .iter()
+                .all(|s| s.trim_start().starts_with("slip.adapt_friction"))
     };
     let mut lines = Vec::new();
     for r in cfg.methods.iter().filter(|m| m.is_eemp_rl()) {
         let same = |t: &&MethodConfig| t.estimator(cfg) == r.estimator(cfg);
         // A learned table walks with its method's own slip setting (absent: the default, on).
         let slip = match r.kind.as_str() {
-            "eemp" => Some(r.adapt_friction != Some(false)),
+            "eemp" => Some(r.adapt_friction() != Some(false)),
             _ => r.policy.as_deref().and_then(policy_runs_slip_handling),
         };
         if slip.is_none() {
@@ -1230,17 +1229,13 @@ pub fn robustness(args: &SuiteArgs) -> Result<(), String> {
                     &a.gait,
                     &a.table,
                     &a.policy,
-                    a.adapt_friction,
-                    a.free_pairing.unwrap_or_default(),
-                    a.walk_support.unwrap_or_default(),
+                    a.controller_sets_besides(&[]),
                 ) == (
                     &b.kind,
                     &b.gait,
                     &b.table,
                     &b.policy,
-                    b.adapt_friction,
-                    b.free_pairing.unwrap_or_default(),
-                    b.walk_support.unwrap_or_default(),
+                    b.controller_sets_besides(&[]),
                 )
         })
         .collect();

@@ -2,20 +2,16 @@
 //! ([`eemp_rl::run::WalkDescription`], which builds and runs it) and the outputs
 //! ([`crate::walk_outputs`], which write it).
 
-use eemp_core::planner::PlannerConfig;
 use eemp_rl::run::WalkDescription;
 use std::path::PathBuf;
 
 /// The options a run file replaces (clap's argument ids, the fields' names).
-pub const RUN_FILE_REPLACES: [&str; 49] = [
+pub const RUN_FILE_REPLACES: [&str; 21] = [
     "controller",
     "policy",
     "estimator",
     "ideal_sensors",
     "seed",
-    "kf_velocity_jump",
-    "kf_dragged_fraction",
-    "kf_leg_outlier",
     "gait",
     "speed",
     "lateral",
@@ -25,35 +21,10 @@ pub const RUN_FILE_REPLACES: [&str; 49] = [
     "params",
     "params_table",
     "table_ii",
-    "progress_factor",
-    "retarget_swing",
-    "first_step_on_command",
-    "preview_swings",
-    "max_accel",
     "scenario",
     "friction",
     "push_at",
     "push_dv",
-    "free_pair_tolerance",
-    "free_support_margin",
-    "free_unpaired",
-    "walk_support_margin",
-    "walk_support_max_speed",
-    "no_walk_support",
-    "mpc_friction",
-    "no_adapt_friction",
-    "adapt_friction",
-    "initial_friction",
-    "min_friction",
-    "hold_cap_after_slip",
-    "hold_raise_fraction",
-    "slip_max_speed",
-    "slow_below_friction",
-    "slow_speed",
-    "ellipse_friction_factor",
-    "touchdown_friction_factor",
-    "mpc_horizon",
-    "mpc_period",
     "robot",
     "allow_robot_mismatch",
     "set",
@@ -91,19 +62,6 @@ pub struct WalkArgs {
     pub duration: f64,
     #[command(flatten)]
     pub params: crate::params_arg::ParamsArgs,
-    /// Re-evaluate eq. (6) during each swing with the velocity measured at that moment
-    /// (`false`: touchdown fixed at lift-off).
-    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
-    pub retarget_swing: bool,
-    /// Take the first step when a speed is commanded, not when a foot leaves its ellipse.
-    #[arg(long)]
-    pub first_step_on_command: bool,
-    /// Show the MPC the swings starting within its horizon (`false`: the running ones, as the paper).
-    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
-    pub preview_swings: bool,
-    /// The body reference follows a change of the command at most this fast, m/s².
-    #[arg(long, default_value_t = PlannerConfig::default().max_accel_mps2)]
-    pub max_accel: f64,
     /// Scenario file (scenarios/*.toml: terrain, friction patches, pushes, payload, model
     /// errors, sensor noise; format: `eemp_sim::scenario`), applied over the rest.
     #[arg(long)]
@@ -113,15 +71,10 @@ pub struct WalkArgs {
     pub friction: Option<f64>,
     #[command(flatten)]
     pub push: crate::push_arg::PushArgs,
-    #[command(flatten)]
-    pub free: crate::free_arg::FreePairingArgs,
-    #[command(flatten)]
-    pub walk_support: crate::walk_support_arg::WalkSupportArgs,
-    #[command(flatten)]
-    pub mpc: crate::mpc_arg::MpcArgs,
-    /// A controller setting, KEY=VALUE (repeatable, applied last in order): dotted keys into
-    /// the settings tree (planner.*, mpc.*, swing.*, slip.*, schedule.*, filter.*), e.g.
-    /// `--set mpc.horizon=12`; `eemp config show` lists every key and its value.
+    /// A controller setting, KEY=VALUE (repeatable, applied in order over the gait's and the
+    /// robot's defaults): dotted keys into the settings tree (planner.*, mpc.*, swing.*, slip.*,
+    /// schedule.*, filter.*), e.g. `--set mpc.horizon=12 --set slip.adapt_friction=false`;
+    /// `eemp config show --gait G` lists every key with its value, unit and range.
     #[arg(long = "set", value_name = "KEY=VALUE")]
     pub set: Vec<String>,
     /// Rows per second in trace.csv (the simulation runs at 1 kHz; every step costs ≈ ¼ of the run).
@@ -162,35 +115,10 @@ impl WalkArgs {
             params: self.params.params.clone(),
             params_table: self.params.params_table.clone(),
             table_ii: self.params.table_ii,
-            progress_factor: self.params.progress_factor,
-            retarget_swing: self.retarget_swing,
-            first_step_on_command: self.first_step_on_command,
-            preview_swings: self.preview_swings,
-            max_accel_mps2: self.max_accel,
-            ellipse_friction_factor: self.mpc.ellipse_friction_factor,
-            touchdown_friction_factor: self.mpc.touchdown_friction_factor,
             scenario: self.scenario.clone(),
             floor_friction: self.friction,
             push_at_s: self.push.push_at,
             push_dv_mps: self.push.push_dv,
-            mpc_friction: self.mpc.mpc_friction,
-            mpc_horizon: self.mpc.mpc_horizon,
-            mpc_period_s: self.mpc.mpc_period,
-            adapt_friction: self.mpc.adapt_friction(),
-            initial_friction: self.mpc.initial_friction,
-            min_friction: self.mpc.min_friction,
-            hold_cap_after_slip: self.mpc.hold_cap_after_slip,
-            hold_raise_fraction: self.mpc.hold_raise_fraction,
-            slip_max_speed_mps: self.mpc.slip_max_speed,
-            slow_below_friction: self.mpc.slow_below_friction,
-            slow_speed_mps: self.mpc.slow_speed,
-            free_pair_tolerance: self.free.free_pair_tolerance,
-            free_support_margin_m: self.free.free_support_margin,
-            free_support_check: None,
-            free_unpaired: self.free.free_unpaired,
-            walk_support_margin_m: self.walk_support.walk_support_margin,
-            walk_support_check: self.walk_support.check(),
-            walk_support_max_speed_mps: self.walk_support.walk_support_max_speed,
             set: self.set.clone(),
         }
     }

@@ -231,12 +231,12 @@ pub fn walk(d: &WalkDescription, o: &WalkOutputs) -> Result<(), String> {
         // The table EEMP walked on: --params-table's, or the shipped one by default.
         "params_table": params_table.as_ref().map(|p| p.display().to_string()),
         "progress_factor": spec.planner.progress_factor,
-        "retarget_swing": d.retarget_swing,
-        "first_step_on_command": d.first_step_on_command,
-        "max_accel_mps2": d.max_accel_mps2,
+        "retarget_swing": spec.planner.retarget_swing,
+        "first_step_on_command": spec.planner.first_step_on_command,
+        "max_accel_mps2": spec.planner.max_accel_mps2,
         "ellipse_friction_factor": spec.planner.ellipse_friction_factor_in_force(),
         "touchdown_friction_factor": spec.planner.touchdown_friction_factor_in_force(),
-        "preview_swings": d.preview_swings,
+        "preview_swings": spec.planner.preview_swings,
         // What the free gait's planner used (EEMP-RL keeps its training's, in the policy file).
         "free_pairing": (is_eemp && gait == Gait::Free)
             .then_some(spec.planner.free_pairing),

@@ -58,7 +58,7 @@ fn bad_walk_and_stand_input_exits_2_names_the_value_and_writes_nothing() {
         malformed.to_str().unwrap(),
     );
     // (arguments, what the message must contain)
-    let cases: [(&[&str], &[&str]); 17] = [
+    let cases: [(&[&str], &[&str]); 18] = [
         (
             &["walk", "--gait", "gallop"],
             &["gallop", "trot, walk, free"],
@@ -75,40 +75,50 @@ fn bad_walk_and_stand_input_exits_2_names_the_value_and_writes_nothing() {
         (&["walk", "--params", missing], &["missing.toml"]),
         (&["walk", "--profile", malformed], &["profile.toml"]),
         (
-            &["walk", "--progress-factor", "3"],
-            &["--progress-factor 3", "[0, 2]"],
+            &["walk", "--set", "planner.progress_factor=3"],
+            &[
+                "--set planner.progress_factor=3",
+                "planner.progress_factor",
+                "[0, 2]",
+            ],
         ),
         (
-            &["walk", "--progress-factor", "-1"],
-            &["--progress-factor -1", "[0, 2]"],
+            &["walk", "--set", "planner.progress_factr=1"],
+            &["progress_factr", "--set planner.progress_factr=1"],
         ),
         (
             &["stand", "--duration", "-3"],
             &["--duration -3", "(0, 3600]"],
         ),
         (
-            &["walk", "--hold-cap-after-slip", "1.5"],
+            &["walk", "--set", "slip.hold_cap_after_slip=1.5"],
             &["slip.hold_cap_after_slip", "1.5", "[0, 1]"],
         ),
         (
-            &["walk", "--hold-raise-fraction", "0.05"],
+            &["walk", "--set", "slip.hold_raise_fraction=0.05"],
             &["slip.hold_raise_fraction", "0.05", "[0.1, 1]"],
         ),
         (
-            &["walk", "--slip-max-speed", "-1"],
+            &["walk", "--set", "slip.max_speed_mps=-1"],
             &["slip.max_speed_mps", "-1", "[0, 10]"],
         ),
         (
-            &["walk", "--gait", "walk", "--slow-speed", "-0.3"],
+            &[
+                "walk",
+                "--gait",
+                "walk",
+                "--set",
+                "slip.slow_speed_mps=-0.3",
+            ],
             &["slip.slow_speed_mps", "-0.3", "[0, 10]"],
         ),
         (
-            &["walk", "--min-friction", "0"],
+            &["walk", "--set", "slip.min_friction=0"],
             &["slip.min_friction", "0", "[0.05, 2]"],
         ),
         (
             // The walk's cap comes on below 0.205: a floor at or above it leaves it no room.
-            &["walk", "--gait", "walk", "--min-friction", "0.21"],
+            &["walk", "--gait", "walk", "--set", "slip.min_friction=0.21"],
             &[
                 "slip.slow_below_friction",
                 "0.205",
@@ -117,23 +127,28 @@ fn bad_walk_and_stand_input_exits_2_names_the_value_and_writes_nothing() {
         ),
         (
             // The cap lifts at 0.25: a threshold above it leaves no room to lift.
-            &["walk", "--gait", "walk", "--slow-below-friction", "0.3"],
+            &[
+                "walk",
+                "--gait",
+                "walk",
+                "--set",
+                "slip.slow_below_friction=0.3",
+            ],
             &["slip.slow_below_friction", "0.3", "[0, 0.25]"],
         ),
         (
             &[
                 "walk",
-                "--gait",
-                "walk",
-                "--no-adapt-friction",
-                "--hold-raise-fraction",
-                "0.8",
+                "--estimator",
+                "kf",
+                "--set",
+                "filter.leg_outlier_mps=-1",
             ],
-            &[
-                "--hold-raise-fraction",
-                "off for this walk",
-                "--no-adapt-friction",
-            ],
+            &["filter.leg_outlier_mps", "-1", "[0, 10]"],
+        ),
+        (
+            &["walk", "--set", "filter.leg_outlier_mps=0.1"],
+            &["filter", "kf estimator"],
         ),
     ];
     assert_refused(&dir, &cases);

@@ -93,8 +93,8 @@ fn a_recording_that_cannot_be_made_stops_the_walk_before_it_starts() {
         (silent, "ended before opening the recording"),
     ] {
         let o = Command::new(env!("CARGO_BIN_EXE_eemp"))
-            .args(["walk", "--duration", "1", "--rerun-python"])
-            .arg(&python)
+            .args(["walk", "--duration", "1"])
+            .env("EEMP_PYTHON", &python)
             .arg("--rerun")
             .arg(dir.path().join("py.rrd"))
             .arg("--out")

@@ -6,7 +6,6 @@
 use eemp_cli::suite::{
     load_rows, merge_rows, run_suite, run_suite_shard, MethodConfig, ScenarioConfig, SuiteConfig,
 };
-use eemp_core::planner::FreePairing;
 use std::path::{Path, PathBuf};
 
 fn repo(p: &str) -> PathBuf {
@@ -26,22 +25,6 @@ fn config() -> SuiteConfig {
                 table: Some(repo("tables/a1_trot.toml")),
                 policy: None,
                 estimator: None,
-                adapt_friction: None,
-                initial_friction: None,
-                min_friction: None,
-                hold_cap_after_slip: None,
-                hold_raise_fraction: None,
-                slip_max_speed_mps: None,
-                slow_below_friction: None,
-                slow_speed_mps: None,
-                ellipse_friction_factor: None,
-                touchdown_friction_factor: None,
-                kf_velocity_jump_mps: None,
-                kf_dragged_fraction: None,
-                kf_leg_outlier_mps: None,
-                free_pairing: None,
-                walk_support: None,
-                mpc_horizon: None,
                 eemp_rl: false,
                 set: Vec::new(),
             },
@@ -52,22 +35,6 @@ fn config() -> SuiteConfig {
                 table: None,
                 policy: Some(repo("policies/a1_model_free_v1.safetensors")),
                 estimator: None,
-                adapt_friction: None,
-                initial_friction: None,
-                min_friction: None,
-                hold_cap_after_slip: None,
-                hold_raise_fraction: None,
-                slip_max_speed_mps: None,
-                slow_below_friction: None,
-                slow_speed_mps: None,
-                ellipse_friction_factor: None,
-                touchdown_friction_factor: None,
-                kf_velocity_jump_mps: None,
-                kf_dragged_fraction: None,
-                kf_leg_outlier_mps: None,
-                free_pairing: None,
-                walk_support: None,
-                mpc_horizon: None,
                 eemp_rl: false,
                 set: Vec::new(),
             },
@@ -181,11 +148,12 @@ fn bad_suite_configs_are_refused_naming_the_value() {
     c.methods[1].policy = Some(repo("policies/nope.safetensors"));
     assert!(c.validate().unwrap_err().contains("nope.safetensors"));
     let mut c = config();
-    c.methods[1].mpc_horizon = Some(8);
-    assert!(c
-        .validate()
-        .unwrap_err()
-        .contains("mpc_horizon is for kind eemp"));
+    c.methods[1].set = vec!["mpc.horizon=8".into()];
+    let e = c.validate().unwrap_err();
+    assert!(
+        e.contains("mpc.horizon=8") && e.contains("--controller eemp"),
+        "{e}"
+    );
     let mut c = config();
     c.methods[0].kind = "magic".into();
     assert!(c.validate().unwrap_err().contains("unknown kind 'magic'"));
@@ -222,48 +190,44 @@ fn bad_suite_configs_are_refused_naming_the_value() {
     c.scenarios[0].profile = Some(repo("profiles/nope.toml"));
     assert!(c.validate().unwrap_err().contains("nope.toml"));
     let mut c = config();
-    c.methods[0].kf_velocity_jump_mps = Some(-0.1);
+    c.methods[0].set = vec!["filter.velocity_jump_mps=-0.1".into()];
     let e = c.validate().unwrap_err();
     assert!(
-        e.contains("kf_velocity_jump_mps") && e.contains("-0.1"),
+        e.contains("filter.velocity_jump_mps") && e.contains("-0.1"),
         "{e}"
     );
     let mut c = config();
-    c.methods[0].kf_dragged_fraction = Some(1.5);
+    c.methods[0].set = vec!["filter.velocity_jump_dragged_fraction=1.5".into()];
     let e = c.validate().unwrap_err();
     assert!(
-        e.contains("kf_dragged_fraction") && e.contains("1.5"),
+        e.contains("filter.velocity_jump_dragged_fraction") && e.contains("1.5"),
         "{e}"
     );
     let mut c = config();
-    c.methods[0].kf_leg_outlier_mps = Some(f64::NAN);
+    c.methods[0].set = vec!["filter.leg_outlier_mps=nan".into()];
     let e = c.validate().unwrap_err();
-    assert!(e.contains("kf_leg_outlier_mps") && e.contains("NaN"), "{e}");
+    assert!(
+        e.contains("filter.leg_outlier_mps") && e.contains("NaN"),
+        "{e}"
+    );
     let mut c = config();
     c.methods[0].estimator = Some("ground-truth".into());
-    c.methods[0].kf_velocity_jump_mps = Some(0.15);
-    assert!(c.validate().unwrap_err().contains("needs the kf estimator"));
-    let mut c = config();
-    c.methods[0].free_pairing = Some(FreePairing::UNPAIRED);
-    let e = c.validate().unwrap_err();
-    assert!(e.contains("free_pairing is for gait free, not trot"), "{e}");
+    c.methods[0].set = vec!["filter.velocity_jump_mps=0.15".into()];
+    assert!(c.validate().unwrap_err().contains("kf estimator"));
     let mut c = config();
     c.methods[0].gait = Some("free".into());
     c.methods[0].table = Some(repo("tables/a1_free.toml"));
-    c.methods[0].free_pairing = Some(FreePairing {
-        pair_tolerance: 1.5,
-        ..Default::default()
-    });
+    c.methods[0].set = vec!["planner.free_pairing.pair_tolerance=1.5".into()];
     let e = c.validate().unwrap_err();
     assert!(e.contains("pair_tolerance") && e.contains("1.5"), "{e}");
     let mut c = config();
-    c.methods[1].free_pairing = Some(FreePairing::UNPAIRED);
+    c.methods[1].set = vec!["planner.free_pairing.pair_tolerance=0.0".into()];
     let e = c.validate().unwrap_err();
-    assert!(e.contains("free_pairing is for kind eemp"), "{e}");
+    assert!(e.contains("only filter.*"), "{e}");
     // A method's slip settings reach its walk: out of range, or where slip handling is off
     // (`adapt_friction = false`), they are refused; the walk's default is on (below 0.6 m/s).
     let mut c = config();
-    c.methods[0].hold_raise_fraction = Some(0.05);
+    c.methods[0].set = vec!["slip.hold_raise_fraction=0.05".into()];
     let e = c.validate().unwrap_err();
     assert!(
         e.contains("slip.hold_raise_fraction") && e.contains("0.05"),
@@ -272,15 +236,15 @@ fn bad_suite_configs_are_refused_naming_the_value() {
     let mut c = config();
     c.methods[0].gait = Some("walk".into());
     c.methods[0].table = Some(repo("tables/a1_walk.toml"));
-    c.methods[0].hold_raise_fraction = Some(0.8);
+    c.methods[0].set = vec!["slip.hold_raise_fraction=0.8".into()];
     c.validate().unwrap();
-    c.methods[0].adapt_friction = Some(false);
-    let e = c.validate().unwrap_err();
-    assert!(e.contains("--no-adapt-friction"), "{e}");
     let mut c = config();
-    c.methods[1].hold_raise_fraction = Some(0.8);
+    c.methods[1].set = vec!["slip.hold_raise_fraction=0.8".into()];
     let e = c.validate().unwrap_err();
-    assert!(e.contains("hold_raise_fraction"), "{e}");
+    assert!(
+        e.contains("slip.hold_raise_fraction") && e.contains("only filter.*"),
+        "{e}"
+    );
 }
 
 #[test]

@@ -3,7 +3,6 @@
 //! The plan comes from the EEMP planner when walking, or from a body-motion profile when
 //! standing; the controller does not care which.
 
-use crate::body_reference::BodyReference;
 use crate::body_state::RobotState;
 use crate::config_error::{check_range, ConfigError};
 use crate::convex_mpc::{ConvexMpc, MpcConfig, MpcInput, MpcStatus};
@@ -13,53 +12,13 @@ use crate::leg_control::{
     clamp_torque, stance_torque, swing_torque, DynamicsModel, FootMeasurement, FootReference,
     SwingGains,
 };
-use crate::planner::{PlannedSwing, PlannerParams};
 use crate::robot::RobotConfig;
 use crate::slip::{FrictionAdapter, SlipConfig};
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
-/// What a planner hands the controller at every control step.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Plan {
-    /// Legs commanded to stance now (C_ref at this instant).
-    pub stance: LegMap<bool>,
-    /// Swing references (body frame) for legs not in stance.
-    pub swing: LegMap<Option<FootReference>>,
-    /// Body reference now (for tracking metrics).
-    pub body_now: BodyReference,
-    /// Body reference at the end of each MPC step.
-    pub body_horizon: Vec<BodyReference>,
-    /// Foot positions (world) during each MPC step.
-    pub feet_horizon_world: Vec<LegMap<Vector3<f64>>>,
-    /// Contact schedule C_ref over the MPC horizon.
-    pub contacts_horizon: Vec<LegMap<bool>>,
-    /// The planner parameters this plan was made with (None: a plan without them, standing).
-    pub params: Option<PlannerParams>,
-    /// The planner's own geometry at this step (None: a plan without it, standing).
-    pub geometry: Option<PlanGeometry>,
-    /// The speed cap slip handling put on the command for a floor it found slippery, m/s
-    /// (`slip.slow_below_friction`; None: the command as given).
-    pub speed_cap_mps: Option<f64>,
-}
-
-/// What Algorithm 1 sees and decides at one step, in the world frame, for viewers and traces:
-/// eq. (5)'s placement ellipses and the running swings (eq. 6's touchdowns, eq. 7's paths).
-#[derive(Clone, Debug, PartialEq)]
-pub struct PlanGeometry {
-    /// Each ellipse's centre: the nominal foothold under the hip, on the ground the stance feet
-    /// stand on (z: ground plus the foot radius, as a touchdown), m.
-    pub ellipse_centres_world: LegMap<Vector3<f64>>,
-    /// The ellipses' axes follow the heading (yaw only), rad.
-    pub heading_yaw_rad: f64,
-    /// Semi-axes r_x (along the heading) and r_y, m.
-    pub ellipse_rx_m: f64,
-    pub ellipse_ry_m: f64,
-    /// Eq. (5)'s left-hand side per foot: above 1, the foot is outside its ellipse.
-    pub ellipse_values: LegMap<f64>,
-    /// The running swings (None: the leg is in stance).
-    pub swings: LegMap<Option<PlannedSwing>>,
-}
+// What a planner hands the controller: defined with the planner, which makes it.
+pub use crate::planner::{Plan, PlanGeometry};
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]

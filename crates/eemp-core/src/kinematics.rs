@@ -224,6 +224,50 @@ fn wrap_angle(a: f64) -> f64 {
     w
 }
 
+// The composite body needs the legs' link frames: it lives with the kinematics, above the robot
+// description it reads.
+impl RobotConfig {
+    /// The robot as one rigid body with every leg at joint angles `q` (e.g. the standing pose):
+    /// mass, COM and inertia about the COM, in the trunk frame (parallel-axis theorem).
+    pub fn composite_body(&self, q: &LegMap<Vector3<f64>>) -> crate::robot::CompositeBody {
+        let kin = LegKinematics::new(self);
+        // (mass, com in trunk frame, inertia about own com in trunk axes)
+        let mut parts: Vec<(f64, Vector3<f64>, Matrix3<f64>)> = vec![(
+            self.trunk.mass_kg,
+            Vector3::from(self.trunk.com_m),
+            crate::robot::inertia_matrix(&self.trunk.inertia_kg_m2),
+        )];
+        for leg in Leg::ALL {
+            let frames = kin.link_frames(leg, &q[leg]);
+            for (kind, link) in [
+                (LinkKind::Hip, &self.leg.hip_link),
+                (LinkKind::Thigh, &self.leg.thigh_link),
+                (LinkKind::Calf, &self.leg.calf_link),
+            ] {
+                let (com, inertia) = link.mirrored(leg, kind);
+                let (origin, rot) = frames.of(kind);
+                parts.push((
+                    link.mass_kg,
+                    origin + rot * com,
+                    rot * crate::robot::inertia_matrix(&inertia) * rot.transpose(),
+                ));
+            }
+        }
+        let mass: f64 = parts.iter().map(|p| p.0).sum();
+        let com = parts.iter().map(|p| p.1 * p.0).sum::<Vector3<f64>>() / mass;
+        let mut inertia = Matrix3::zeros();
+        for (m, c, i) in &parts {
+            let d = c - com;
+            inertia += i + *m * (Matrix3::identity() * d.dot(&d) - d * d.transpose());
+        }
+        crate::robot::CompositeBody {
+            mass_kg: mass,
+            com_body: com,
+            inertia_body: inertia,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -9,7 +9,7 @@
 //!   [`eemp_controller`] (EEMP walking and standing), [`joint_pd`] (joint PD, how policies act).
 //! - [`estimator`]: attitude from the IMU and a linear Kalman filter for trunk position and
 //!   velocity from IMU + leg kinematics (what the robot knows of itself).
-//! - [`hardware`]: the A1's legacy low-level UDP protocol (datagram codec and CRC).
+//! - [`safety`]: the safety layer every command to a robot passes (limits, watchdog, damping).
 //! - [`energy`]: the motor model and the electrical energy account (what the battery pays).
 //! - [`metrics`]: cost of transport (eq. 8) and force manipulability (eq. 9); [`gait_measure`]:
 //!   duty factors, pair synchrony and left/right load of any walk.
@@ -26,8 +26,9 @@ pub mod convex_mpc;
 pub mod eemp_controller;
 pub mod energy;
 pub mod estimator;
+pub mod gait;
 pub mod gait_measure;
-pub mod hardware;
+pub mod gait_settings;
 pub mod joint_pd;
 pub mod kinematics;
 pub mod leg;
@@ -35,7 +36,9 @@ pub mod leg_control;
 pub mod metrics;
 pub mod planner;
 pub mod robot;
+pub mod safety;
 pub mod settings;
+pub mod settings_keys;
 pub mod slip;
 pub mod stand_profile;
 pub mod teleop;

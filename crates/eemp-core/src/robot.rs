@@ -2,13 +2,16 @@
 //! from it: link inertias per leg and the composite rigid body the MPC uses.
 
 use crate::config_error::{check_positive, check_range, ConfigError};
-use crate::kinematics::LegKinematics;
 use crate::leg::{Leg, LegMap};
 use nalgebra::{Matrix3, Vector3};
 use serde::{Deserialize, Serialize};
 
 /// The project's A1 description, compiled in so tests and tools need no working directory.
 pub const A1_TOML: &str = include_str!("../../../robots/a1.toml");
+
+/// Friction coefficients a floor, a robot file or a controller may name (the MPC's pyramid,
+/// the slip detector's floor and start).
+pub const FRICTION_RANGE: [f64; 2] = [0.05, 2.0];
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
@@ -87,7 +90,7 @@ pub enum LowLevelProtocol {
     /// The A1's UDP datagrams (unitree_legged_sdk 3.3), the project's `a1_protocol`.
     #[default]
     A1Udp,
-    /// unitree_sdk2's DDS topics rt/lowcmd / rt/lowstate (the Go2): `eemp_core::hardware::go2_idl`, `eemp_hw::dds`.
+    /// unitree_sdk2's DDS topics rt/lowcmd / rt/lowstate (the Go2): `eemp_hw::wire::go2_idl`, `eemp_hw::dds`.
     Go2Dds,
     /// No codec the project can check against the real robot (the Go1's UDP wire format is
     /// known only from third-party reverse engineering): simulation only.
@@ -304,7 +307,7 @@ impl LinkConfig {
     }
 }
 
-fn inertia_matrix(i: &[f64; 6]) -> Matrix3<f64> {
+pub(crate) fn inertia_matrix(i: &[f64; 6]) -> Matrix3<f64> {
     Matrix3::new(i[0], i[3], i[4], i[3], i[1], i[5], i[4], i[5], i[2])
 }
 
@@ -355,7 +358,7 @@ impl RobotConfig {
         let s = &self.simulation;
         check_range("simulation.timestep_s", s.timestep_s, 1e-5, 0.005)?;
         if let Some(mu) = self.control.slip_initial_friction {
-            let [lo, hi] = crate::convex_mpc::FRICTION_RANGE;
+            let [lo, hi] = FRICTION_RANGE;
             check_range("control.slip_initial_friction", mu, lo, hi)?;
         }
         check_range("simulation.floor_friction", s.floor_friction, 0.0, 5.0)?;
@@ -459,7 +462,7 @@ impl RobotConfig {
     /// Where this robot's per-speed table of `gait` is shipped, relative to the repository:
     /// `tables/<robot>_<gait>.toml` (what the walks, suites, teleop and `eemp hw` use unless
     /// told otherwise).
-    pub fn shipped_table_path(&self, gait: crate::planner::Gait) -> std::path::PathBuf {
+    pub fn shipped_table_path(&self, gait: crate::gait::Gait) -> std::path::PathBuf {
         std::path::PathBuf::from(format!("tables/{}_{gait}.toml", self.name))
     }
 
@@ -490,46 +493,6 @@ impl RobotConfig {
     pub fn total_mass_kg(&self) -> f64 {
         let l = &self.leg;
         self.trunk.mass_kg + 4.0 * (l.hip_link.mass_kg + l.thigh_link.mass_kg + l.calf_link.mass_kg)
-    }
-
-    /// The robot as one rigid body with every leg at joint angles `q` (e.g. the standing pose):
-    /// mass, COM and inertia about the COM, in the trunk frame (parallel-axis theorem).
-    pub fn composite_body(&self, q: &LegMap<Vector3<f64>>) -> CompositeBody {
-        let kin = LegKinematics::new(self);
-        // (mass, com in trunk frame, inertia about own com in trunk axes)
-        let mut parts: Vec<(f64, Vector3<f64>, Matrix3<f64>)> = vec![(
-            self.trunk.mass_kg,
-            Vector3::from(self.trunk.com_m),
-            inertia_matrix(&self.trunk.inertia_kg_m2),
-        )];
-        for leg in Leg::ALL {
-            let frames = kin.link_frames(leg, &q[leg]);
-            for (kind, link) in [
-                (LinkKind::Hip, &self.leg.hip_link),
-                (LinkKind::Thigh, &self.leg.thigh_link),
-                (LinkKind::Calf, &self.leg.calf_link),
-            ] {
-                let (com, inertia) = link.mirrored(leg, kind);
-                let (origin, rot) = frames.of(kind);
-                parts.push((
-                    link.mass_kg,
-                    origin + rot * com,
-                    rot * inertia_matrix(&inertia) * rot.transpose(),
-                ));
-            }
-        }
-        let mass: f64 = parts.iter().map(|p| p.0).sum();
-        let com = parts.iter().map(|p| p.1 * p.0).sum::<Vector3<f64>>() / mass;
-        let mut inertia = Matrix3::zeros();
-        for (m, c, i) in &parts {
-            let d = c - com;
-            inertia += i + *m * (Matrix3::identity() * d.dot(&d) - d * d.transpose());
-        }
-        CompositeBody {
-            mass_kg: mass,
-            com_body: com,
-            inertia_body: inertia,
-        }
     }
 
     /// Standing joint angles for every leg.

@@ -95,15 +95,16 @@ impl ControllerSettings {
                 None => None,
             },
         };
-        s.planner
-            .validate()
-            .map_err(|e| format!("{origin}: planner.{e}"))?;
+        s.planner.validate().map_err(|e| format!("{origin}: {e}"))?;
         s.controller
             .validate()
             .map_err(|e| format!("{origin}: {e}"))?;
         if let Some(kf) = &s.filter {
             kf.validate()
-                .map_err(|e| format!("{origin}: filter: {e}"))?;
+                // The filter's own messages name its keys as the training config's `[kf]` does.
+                .map_err(|e| {
+                    format!("{origin}: {}", e.to_string().replacen("kf.", "filter.", 1))
+                })?;
         }
         Ok(s)
     }

@@ -53,7 +53,7 @@
 //! [`SlipConfig::slow_below_friction`] the command's speed is capped at
 //! [`SlipConfig::slow_speed_mps`] (0.3 m/s) until the coefficient is back at
 //! [`SlipConfig::slow_release_friction`] (0.25), as a person slows down on ice. The walk uses it
-//! ([`WALK_SLOW_BELOW_FRICTION`], just above its floor [`WALK_MIN_FRICTION`]): at 0.5 m/s on a
+//! (`settings/walk.toml`: 0.205, just above its floor of 0.2): at 0.5 m/s on a
 //! slippery floor its coefficient reaches its floor seconds before it would fall, in time to slow
 //! down, and on the normal floor it stays above the threshold, so the cap costs nothing there.
 //! Not for the trot and the free gait: they walk those floors at speed, and their feet slide
@@ -132,7 +132,7 @@ pub struct SlipConfig {
     /// applies, and the pyramid's corners let the asked ratio reach √2·μ̂, so a hold is weaker
     /// evidence than the ratio it was asked for; the discount matters once the capture step is
     /// bounded by the coefficient (`planner.touchdown_friction_factor`, see
-    /// [`HOLD_RAISE_FRACTION_TROT_FREE`]).
+    /// `settings/trot.toml`).
     pub hold_raise_fraction: f64,
     /// Slip handling runs only while the planner's reference speed (its trunk reference at the
     /// first horizon step) is below this, m/s; from it on the MPC keeps its nominal coefficient
@@ -160,40 +160,10 @@ pub struct SlipConfig {
 /// docs).
 pub const CAUTIOUS_START: f64 = 0.3;
 
-/// The trot's and the free gait's [`SlipConfig::hold_raise_fraction`]. Their capture step is
-/// bounded by the friction coefficient (`planner.touchdown_friction_factor`), so a coefficient a
-/// hold over-raises lets a pushed robot step out further than a slippery floor can brake. 0.8
-/// discounts the asked ratio (not what the foot applied, up to √2·μ̂ at the pyramid's corners)
-/// and kept the most pushes on a slippery floor of the fractions tried, with the flat floor's
-/// CoT unchanged.
-pub const HOLD_RAISE_FRACTION_TROT_FREE: f64 = 0.8;
-
-/// The walk's [`SlipConfig::max_speed_mps`]: above it its landing feet skid on any floor.
-pub const WALK_MAX_SPEED_MPS: f64 = 0.6;
-
 /// The speed cap on a floor found slippery ([`SlipConfig::slow_speed_mps`]). The walk at 0.5 m/s
 /// does not stay up on the slippery floors and under side pushes there; at 0.4 m/s (the paper's
 /// walk is stable up to 0.4 m/s) it still lost some of those pushes, at 0.3 m/s none.
 pub const SLIPPERY_SPEED_MPS: f64 = 0.3;
-
-/// The walk's [`SlipConfig::slow_below_friction`], just above its floor
-/// ([`WALK_MIN_FRICTION`]). On the normal floor, even at 0.45–0.59 m/s, the walk's coefficient
-/// stays above it (one slip from the cautious start's 0.3 leaves 0.21), so the cap costs nothing
-/// there; on a slippery floor at 0.5 m/s the coefficient reaches its floor seconds before the
-/// walk would fall, in time to slow down.
-pub const WALK_SLOW_BELOW_FRICTION: f64 = 0.205;
-
-/// The walk's [`SlipConfig::min_friction`] (the trot's and the free gait's stay at 0.15). The
-/// walk moves one leg at a time, so a side push that meets a leg lifting on its side leaves the
-/// trunk over one diagonal until that foot lands; a 0.5 m/s velocity step slides every foot, and
-/// those slides take the coefficient to 0.15 on a 0.3 floor, the MPC then braking at half of
-/// what the floor gives. A floor of 0.2 keeps more of that braking, and kept more pushes than
-/// the other levers tried (a refractory time, not counting lightly asked slides, not lifting a
-/// leg on the pushed side, the trot's diagonal pairs while pushed, a shorter MPC step). Not for
-/// the trot and the free gait: on a floor as slippery as 0.15 a floor of 0.2 leaves their
-/// pyramid wider than the floor's cone and they fall, where with 0.15 they walk (history:
-/// docs/notebook/).
-pub const WALK_MIN_FRICTION: f64 = 0.2;
 
 impl Default for SlipConfig {
     fn default() -> Self {
@@ -222,41 +192,11 @@ impl Default for SlipConfig {
 }
 
 impl SlipConfig {
-    /// The default for a gait: on for every gait; the walk's with gates of its own and below
-    /// 0.6 m/s. The walk's slides must also move over the ground and stay on the floor
-    /// (`require_ground_speed`, `max_vertical_speed_mps` 0.2 m/s). Without those two its feet
-    /// read as sliding on the normal floor at 0.5 m/s (late touchdowns, lift-offs, the anchor's
-    /// own reading): the coefficient sits at its floor and CoT rises 8 %. Above 0.6 m/s
-    /// (`max_speed_mps`) the walk's landing feet really slide on a grippy floor (≈ 1 m/s at
-    /// touchdown at 0.7 and 1.0 m/s), which no gate here tells from a slippery floor: slip
-    /// handling there takes the coefficient to its floor and the walk falls, so above the limit
-    /// the MPC keeps its nominal (ignoring those slides alone while keeping the lowered
-    /// coefficient is not enough). The trot and the free gait keep both gates off: under pushes
-    /// on a slippery floor the slides of their feet that also move vertically are real, and
-    /// either gate cost them pushes. The walk also slows to 0.3 m/s on a floor found slippery
-    /// (`slow_below_friction` 0.205, see the module docs); the trot and the free gait do not. The
-    /// walk's coefficient never goes below 0.2 ([`WALK_MIN_FRICTION`]), the others' below 0.15.
+    /// The default for a gait: the structs' defaults with the gait's `[slip]` of
+    /// `settings/<gait>.toml` over them (the walk's gates, speed limit, speed cap and floor, and
+    /// why, are in that file).
     pub fn default_for(gait: crate::planner::gait::Gait) -> Self {
-        let walk = gait == crate::planner::gait::Gait::Walk;
-        let base = SlipConfig::default();
-        SlipConfig {
-            adapt_friction: true,
-            hold_raise_fraction: if walk {
-                1.0
-            } else {
-                HOLD_RAISE_FRACTION_TROT_FREE
-            },
-            max_vertical_speed_mps: if walk { 0.2 } else { 0.0 },
-            require_ground_speed: walk,
-            max_speed_mps: if walk { WALK_MAX_SPEED_MPS } else { 0.0 },
-            slow_below_friction: if walk { WALK_SLOW_BELOW_FRICTION } else { 0.0 },
-            min_friction: if walk {
-                WALK_MIN_FRICTION
-            } else {
-                base.min_friction
-            },
-            ..base
-        }
+        crate::gait_settings::with_gait_table(&SlipConfig::default(), &gait.to_string(), "slip")
     }
 
     pub fn validate(&self) -> Result<(), ConfigError> {
@@ -646,7 +586,11 @@ mod tests {
             hold_cap_after_slip: 0.0,
             ..SlipConfig::default_for(Gait::Walk)
         };
-        assert_eq!(walk.max_speed_mps, WALK_MAX_SPEED_MPS);
+        // The walk's support check stops where its slip handling does.
+        assert_eq!(
+            walk.max_speed_mps,
+            crate::planner::gait::DEFAULT_WALK_SUPPORT_MAX_SPEED_MPS
+        );
         assert_eq!(SlipConfig::default_for(Gait::Trot).max_speed_mps, 0.0);
         let (v, forces) = front_right_slides_flat();
         let stance = LegMap::splat(true);
@@ -691,11 +635,11 @@ mod tests {
     fn a_floor_found_slippery_caps_the_walks_speed_until_the_coefficient_recovers() {
         use crate::planner::gait::Gait;
         let walk = SlipConfig::default_for(Gait::Walk);
-        assert_eq!(walk.slow_below_friction, WALK_SLOW_BELOW_FRICTION);
+        assert_eq!(walk.slow_below_friction, 0.205);
         assert_eq!(walk.slow_speed_mps, SLIPPERY_SPEED_MPS);
         assert_eq!(SlipConfig::default_for(Gait::Trot).slow_below_friction, 0.0);
         assert_eq!(SlipConfig::default_for(Gait::Free).slow_below_friction, 0.0);
-        assert_eq!(walk.min_friction, WALK_MIN_FRICTION);
+        assert_eq!(walk.min_friction, 0.2);
         assert_eq!(SlipConfig::default_for(Gait::Trot).min_friction, 0.15);
         // Starting at 0.25 (above 0.205: no cap), one slip takes the coefficient to the walk's
         // floor of 0.2 (0.25 × 0.7 = 0.175): capped at 0.3 m/s.

@@ -10,7 +10,7 @@
 //! and VOLATILE — a controller only ever wants the newest state, a robot the newest command.
 
 use crate::link::{FaultQueue, Faults, LinkStats};
-use eemp_core::hardware::go2_idl::{CDR_LE_HEADER, LOW_CMD_TYPE_NAME, LOW_STATE_TYPE_NAME};
+use crate::wire::go2_idl::{CDR_LE_HEADER, LOW_CMD_TYPE_NAME, LOW_STATE_TYPE_NAME};
 use rustdds::bytes::Bytes;
 use rustdds::no_key::{
     DataReader, DataWriter, Decode, DefaultDecoder, DeserializerAdapter, SerializerAdapter,

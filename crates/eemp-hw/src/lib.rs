@@ -1,5 +1,7 @@
-//! The hardware path, on the core's protocol codec and safety layer:
+//! The hardware path, on the core's safety layer:
 //!
+//! - [`wire`]: the A1's UDP protocol and the Go2's DDS messages, bytes in and out, and their
+//!   mapping to the controller's joints and commands.
 //! - [`link`]: a non-blocking UDP endpoint with fault injection (drop, corrupt, delay, reorder)
 //!   for tests against the simulated robot.
 //! - [`dds`]: the Go2's low-level DDS interface (`rt/lowcmd`, `rt/lowstate`) on RustDDS, with
@@ -14,3 +16,4 @@ pub mod link;
 pub mod motion_switcher;
 pub mod runner;
 pub mod sim_robot;
+pub mod wire;

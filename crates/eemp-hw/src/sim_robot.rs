@@ -14,9 +14,9 @@
 use crate::dds::{DdsConfig, Go2Endpoint, Role};
 use crate::link::{Faults, Link, LinkStats};
 use crate::motion_switcher::ModeServer;
-use eemp_core::hardware::a1_protocol::{LowCmd, LowState, MotorCmd, MotorState, MOTORS};
-use eemp_core::hardware::go2_idl;
-use eemp_core::hardware::robot_io::{go2_motor_torque, motor_torque};
+use crate::wire::a1_protocol::{LowCmd, LowState, MotorCmd, MotorState, MOTORS};
+use crate::wire::go2_idl;
+use crate::wire::robot_io::{go2_motor_torque, motor_torque};
 use eemp_core::leg::{Leg, LegMap};
 use eemp_core::robot::MotorOrder;
 use eemp_core::robot::RobotConfig;
@@ -103,7 +103,7 @@ fn low_state(
     for leg in Leg::ALL {
         for j in 0..3 {
             out.motors[order.index(leg, j)] = MotorState {
-                mode: eemp_core::hardware::a1_protocol::MODE_SERVO,
+                mode: crate::wire::a1_protocol::MODE_SERVO,
                 q: s.joints[leg].q[j] as f32,
                 dq: s.joints[leg].qd[j] as f32,
                 tau_est: tau[leg][j] as f32,

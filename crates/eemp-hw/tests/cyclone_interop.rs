@@ -7,9 +7,9 @@
 //! The peer's environment is `.venv-dds` (`scripts/install-dds-peer.sh`, which `make test`
 //! runs first). Without it the tests say so loudly and pass, unless EEMP_REQUIRE_DDS_PEER=1.
 
-use eemp_core::hardware::go2_idl::{fixtures, LowState};
 use eemp_hw::dds::{DdsConfig, Go2Endpoint, Role};
 use eemp_hw::link::Faults;
+use eemp_hw::wire::go2_idl::{fixtures, LowState};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command};
@@ -233,7 +233,7 @@ fn a_cyclone_dds_peer_ignores_a_writer_with_the_wrong_type_name() {
     let right = dp
         .create_topic(
             TOPIC_LOWSTATE.into(),
-            eemp_core::hardware::go2_idl::LOW_STATE_TYPE_NAME.into(),
+            eemp_hw::wire::go2_idl::LOW_STATE_TYPE_NAME.into(),
             &reader_qos(),
             TopicKind::NoKey,
         )

@@ -3,9 +3,9 @@
 //! a LowState_ one way and a LowCmd_ the other, decoded and CRC-checked by eemp-core's codec;
 //! a corrupted sample fails its CRC (or, flipped in padding, decodes to what was sent).
 
-use eemp_core::hardware::go2_idl::{fixtures, LowCmd, LowState};
 use eemp_hw::dds::{DdsConfig, Go2Endpoint, Role};
 use eemp_hw::link::Faults;
+use eemp_hw::wire::go2_idl::{fixtures, LowCmd, LowState};
 use std::time::{Duration, Instant};
 
 const DOMAIN: u16 = 77;

@@ -102,6 +102,7 @@ fn eemp_walk(
     params_table: Option<PathBuf>,
     table_ii: bool,
     robot: Option<PathBuf>,
+    settings: Vec<String>,
 ) -> WalkDescription {
     WalkDescription {
         robot,
@@ -109,6 +110,7 @@ fn eemp_walk(
         params,
         params_table,
         table_ii,
+        set: settings,
         ..Default::default()
     }
 }
@@ -130,15 +132,16 @@ pub struct PyEempController {
 #[pymethods]
 impl PyEempController {
     #[new]
-    #[pyo3(signature = (gait = "trot", params = None, params_table = None, robot = None, table_ii = false))]
+    #[pyo3(signature = (gait = "trot", params = None, params_table = None, robot = None, table_ii = false, settings = Vec::new()))]
     fn new(
         gait: &str,
         params: Option<PathBuf>,
         params_table: Option<PathBuf>,
         robot: Option<PathBuf>,
         table_ii: bool,
+        settings: Vec<String>,
     ) -> PyResult<Self> {
-        let built = eemp_walk(gait, params, params_table, table_ii, robot)
+        let built = eemp_walk(gait, params, params_table, table_ii, robot, settings)
             .build()
             .map_err(value_error)?;
         let (robot, spec) = (built.robot, built.spec);
@@ -234,7 +237,7 @@ impl PyA1Sim {
     #[pyo3(signature = (gait = "trot", seed = 0, table_ii = false))]
     fn new(gait: &str, seed: u64, table_ii: bool) -> PyResult<Self> {
         // The start pose of the EempController it pairs with: the same table (or Table II).
-        let built = eemp_walk(gait, None, None, table_ii, None)
+        let built = eemp_walk(gait, None, None, table_ii, None, Vec::new())
             .build()
             .map_err(value_error)?;
         let robot = built.robot;
@@ -290,7 +293,7 @@ impl PyA1Sim {
 /// its summary as JSON text (the Python side makes it a dict).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (gait = "trot", speed = 0.3, duration_s = 20.0, seed = 0, lateral = 0.0, yaw_rate = 0.0, params = None, params_table = None, estimator = "ground-truth", robot = None, table_ii = false))]
+#[pyo3(signature = (gait = "trot", speed = 0.3, duration_s = 20.0, seed = 0, lateral = 0.0, yaw_rate = 0.0, params = None, params_table = None, estimator = "ground-truth", robot = None, table_ii = false, settings = Vec::new()))]
 pub fn walk_json(
     py: Python<'_>,
     gait: &str,
@@ -304,6 +307,7 @@ pub fn walk_json(
     estimator: &str,
     robot: Option<PathBuf>,
     table_ii: bool,
+    settings: Vec<String>,
 ) -> PyResult<String> {
     // Python's names for the values Python users give.
     if !(duration_s.is_finite() && duration_s > 0.0 && duration_s <= 3600.0) {
@@ -321,7 +325,7 @@ pub fn walk_json(
             seed,
             ..Default::default()
         },
-        ..eemp_walk(gait, params, params_table, table_ii, robot)
+        ..eemp_walk(gait, params, params_table, table_ii, robot, settings)
     }
     .build()
     .map_err(value_error)?;

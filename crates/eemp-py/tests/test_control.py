@@ -45,3 +45,14 @@ def test_walk_takes_a_robot_file_and_refuses_another_robots_table():
         eemp.walk(duration_s=1.0, robot=str(go1), params_table=str(a1_table))
     with pytest.raises(ValueError, match="'go1'"):
         eemp.EempController(gait="trot", params_table=str(a1_table), robot=str(go1))
+
+
+def test_settings_reach_the_walk_and_typos_are_refused_by_name():
+    import pytest
+
+    s = eemp.walk(gait="trot", speed=0.3, duration_s=3.0, settings=["planner.retarget_swing=false"])
+    assert s["retarget_swing"] is False
+    with pytest.raises(ValueError, match="mpc.horizn"):
+        eemp.walk(duration_s=1.0, settings=["mpc.horizn=12"])
+    with pytest.raises(ValueError, match=r"mpc.horizon = 0 is out of range: allowed \[1, 40\]"):
+        eemp.EempController(gait="trot", settings=["mpc.horizon=0"])

@@ -40,9 +40,7 @@
 //! uninterrupted run's, whatever the thread count.
 
 use crate::config::TrainConfig;
-use eemp_core::config_error::{check_range, ConfigError};
-use eemp_core::planner::params_table::{Interpolation, ParamsTable, TableEntry};
-use serde::{Deserialize, Serialize};
+use eemp_core::planner::params_table::{ParamsTable, TableEntry};
 // The search itself (CMA-ES, episodes, the cache) is part of the `learning` feature.
 #[cfg(feature = "learning")]
 use {
@@ -62,79 +60,8 @@ use {
     std::time::Instant,
 };
 
-/// `[cmaes]` of a training config with `optimizer = "cmaes"`.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct CmaesConfig {
-    /// Candidates per generation; 0: CMA-ES's default 4 + ⌊3 ln n⌋.
-    pub population: usize,
-    /// Episodes each candidate runs per generation (the same ones for every candidate).
-    pub episodes_per_candidate: usize,
-    /// Initial step size in the action's units (Δ = bounds ⊙ tanh(x); x starts at 0, the table).
-    pub initial_sigma: f64,
-    /// One search per table entry, on episodes at that entry's speed (see the module docs).
-    pub per_entry: bool,
-    /// Per entry: the fresh episodes its correction must beat the table on to be kept (0: kept
-    /// as found).
-    pub validation_episodes: usize,
-    /// Per entry: fresh episodes in the robot file's own world (flat floor, its friction, no
-    /// payload, no pushes) on which the correction's CoT must stay within
-    /// `nominal_cot_tolerance` of the table's to be kept (0: no such check).
-    pub nominal_episodes: usize,
-    /// How far above the table's CoT on the nominal episodes a kept correction may be, as a
-    /// share (0.01: 1 %).
-    pub nominal_cot_tolerance: f64,
-}
-
-impl Default for CmaesConfig {
-    fn default() -> Self {
-        CmaesConfig {
-            population: 0,
-            episodes_per_candidate: 8,
-            initial_sigma: 0.5,
-            per_entry: false,
-            validation_episodes: 0,
-            nominal_episodes: 0,
-            nominal_cot_tolerance: 0.01,
-        }
-    }
-}
-
-impl CmaesConfig {
-    pub fn validate(&self) -> Result<(), ConfigError> {
-        if self.population != 0 {
-            check_range("cmaes.population", self.population as f64, 4.0, 4096.0)?;
-        }
-        check_range(
-            "cmaes.episodes_per_candidate",
-            self.episodes_per_candidate as f64,
-            1.0,
-            4096.0,
-        )?;
-        check_range("cmaes.initial_sigma", self.initial_sigma, 1e-3, 3.0)?;
-        for (name, n) in [
-            ("validation_episodes", self.validation_episodes),
-            ("nominal_episodes", self.nominal_episodes),
-        ] {
-            if !self.per_entry && n > 0 {
-                return Err(ConfigError::Invalid {
-                    name: format!("cmaes.{name}"),
-                    message: format!(
-                        "is {n} but validates each entry's search: it needs per_entry = true \
-                         (allowed: 0 without it)"
-                    ),
-                });
-            }
-            check_range(&format!("cmaes.{name}"), n as f64, 0.0, 4096.0)?;
-        }
-        check_range(
-            "cmaes.nominal_cot_tolerance",
-            self.nominal_cot_tolerance,
-            0.0,
-            1.0,
-        )
-    }
-}
+// The `[cmaes]` settings and their check belong to the training config, below the search.
+pub use crate::config::{check_cmaes_config as check_config, CmaesConfig};
 
 /// One generation's line of `cmaes.csv`.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -201,57 +128,6 @@ pub fn corrected_table(table: &ParamsTable, bounds: &[f64; 5], x: &[f64]) -> Par
         entries,
         ..table.clone()
     }
-}
-
-/// Checks that `config` is one CMA-ES can run: EEMP-RL, residual, nearest-entry table.
-pub fn check_config(config: &TrainConfig) -> Result<(), ConfigError> {
-    let invalid = |message: &str| ConfigError::Invalid {
-        name: "optimizer".into(),
-        message: message.into(),
-    };
-    if config.task != crate::config::TaskKind::EempRl {
-        return Err(invalid(&format!(
-            "\"cmaes\" trains EEMP-RL's residual, not task {} (allowed: \"ppo\")",
-            config.task.name()
-        )));
-    }
-    let Some(r) = &config.eemp_rl.residual else {
-        return Err(invalid(
-            "\"cmaes\" needs [eemp_rl.residual] (the absolute form has no table to correct)",
-        ));
-    };
-    if r.paired {
-        // A whole-episode return already compares candidates on the same episodes.
-        return Err(ConfigError::Invalid {
-            name: "eemp_rl.residual.paired".into(),
-            message: "is true but \"cmaes\" compares candidates on the same episodes already; \
-                      the paired reward is for PPO (allowed: false, or optimizer = \"ppo\")"
-                .into(),
-        });
-    }
-    if r.deadband != 0.0 {
-        // The band is for a policy's noisy answers; CMA-ES searches each entry's correction
-        // itself, and a band would only flatten its search space around the table.
-        return Err(ConfigError::Invalid {
-            name: "eemp_rl.residual.deadband".into(),
-            message: format!(
-                "is {} but \"cmaes\" corrects each table entry directly and has no band \
-                 (allowed: 0, or optimizer = \"ppo\")",
-                r.deadband
-            ),
-        });
-    }
-    if let Some(t) = &r.table {
-        if t.interpolation != Interpolation::Nearest {
-            return Err(ConfigError::Invalid {
-                name: r.table_file.display().to_string(),
-                message: "CMA-ES corrects each entry: the table's interpolation must be \
-                          \"nearest\" (allowed: \"nearest\")"
-                    .into(),
-            });
-        }
-    }
-    config.cmaes.validate()
 }
 
 #[cfg(feature = "learning")]

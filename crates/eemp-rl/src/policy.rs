@@ -257,3 +257,17 @@ impl Policy {
             .map_err(|e| e.to_string())
     }
 }
+
+/// A trained policy chooses EEMP-RL's parameters (the task's controller is written against the
+/// trait, so the task sits below the policy files it runs).
+impl crate::tasks::eemp_rl::ParamsPolicy for Policy {
+    fn act(&mut self, obs: &[f32]) -> Option<Vec<f32>> {
+        Policy::act(self, obs).ok()
+    }
+    fn check_robot(&self, robot: &eemp_core::robot::RobotConfig) -> Result<(), String> {
+        Policy::check_robot(self, robot)
+    }
+    fn allow_robot_mismatch(&self) -> bool {
+        self.allow_robot_mismatch
+    }
+}

@@ -14,11 +14,8 @@ use crate::config::{TaskKind, TrainEstimator};
 use crate::policy::Policy;
 use eemp_core::config_error::load_toml;
 use eemp_core::control::Controller;
-use eemp_core::estimator::KfConfig;
 use eemp_core::planner::params_table::ParamsTable;
-use eemp_core::planner::{
-    FreePairing, Gait, PlannerConfig, PlannerParams, VelocityCommand, WalkSupport,
-};
+use eemp_core::planner::{Gait, PlannerConfig, PlannerParams, VelocityCommand};
 use eemp_core::robot::RobotConfig;
 use eemp_core::settings::ControllerSettings;
 use eemp_sim::closed_loop::{Push, StateSource, StepRecord};
@@ -49,7 +46,6 @@ pub struct Sensing {
     pub ideal_sensors: bool,
     /// Seed of the sensor noise and of the start perturbation (0: start at rest).
     pub seed: u64,
-    pub kf: KfOptions,
 }
 
 impl Default for Sensing {
@@ -58,7 +54,6 @@ impl Default for Sensing {
             estimator: "ground-truth".into(),
             ideal_sensors: false,
             seed: 0,
-            kf: KfOptions::default(),
         }
     }
 }
@@ -71,70 +66,8 @@ impl Sensing {
                 self.estimator
             ));
         }
-        let mut source = state_source(&self.estimator, self.ideal_sensors, self.seed, robot)?;
-        with_kf_options(
-            &mut source,
-            &self.kf,
-            [
-                "--kf-velocity-jump",
-                "--kf-dragged-fraction",
-                "--kf-leg-outlier",
-            ],
-        )?;
-        Ok(source)
+        state_source(&self.estimator, self.ideal_sensors, self.seed, robot)
     }
-}
-
-/// Settings of the filter that a command or a suite method may override (`None`: the filter's
-/// default).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct KfOptions {
-    pub velocity_jump_mps: Option<f64>,
-    pub velocity_jump_dragged_fraction: Option<f64>,
-    pub leg_outlier_mps: Option<f64>,
-}
-
-/// Sets one filter setting.
-type KfSetter = fn(&mut KfConfig, f64);
-
-impl KfOptions {
-    /// Each option with the filter setting it sets, in the order of the options' names.
-    fn settings(&self) -> [(Option<f64>, KfSetter); 3] {
-        [
-            (self.velocity_jump_mps, |kf, v| kf.velocity_jump_mps = v),
-            (self.velocity_jump_dragged_fraction, |kf, v| {
-                kf.velocity_jump_dragged_fraction = v
-            }),
-            (self.leg_outlier_mps, |kf, v| kf.leg_outlier_mps = v),
-        ]
-    }
-}
-
-/// Applies `options` to the filter (`names` are the options' names, for the errors); refused
-/// out of the filter's range, or for a run on ground truth.
-pub fn with_kf_options(
-    source: &mut StateSource,
-    options: &KfOptions,
-    names: [&str; 3],
-) -> Result<(), String> {
-    let settings = options.settings();
-    let Some(kf) = source.kf_config_mut() else {
-        let given = settings.iter().map(|(v, _)| *v);
-        return match names.iter().zip(given).find_map(|(n, v)| v.map(|v| (n, v))) {
-            Some((name, v)) => Err(format!("{name} {v} needs the kf estimator")),
-            None => Ok(()),
-        };
-    };
-    // One option at a time, each checked by the filter's own range and reported under the
-    // option's name.
-    for ((value, set), name) in settings.into_iter().zip(names) {
-        if let Some(v) = value {
-            set(kf, v);
-            kf.validate().map_err(|e| format!("{name}: {e}"))?;
-        }
-    }
-    Ok(())
 }
 
 /// `ground-truth` or `kf` (with A1-like sensor noise unless `ideal_sensors`).
@@ -162,20 +95,14 @@ pub fn state_source(
 }
 
 #[cfg(feature = "learning")]
-/// A policy trained on the filter runs on the filter it was trained on (its config's `[kf]`),
-/// except for the settings `options` names.
-pub fn adopt_policy_filter(source: &mut StateSource, policy: &Policy, options: &KfOptions) {
+/// A policy trained on the filter runs on the filter it was trained on (its config's `[kf]`);
+/// a walk's `filter.*` settings apply over it.
+pub fn adopt_policy_filter(source: &mut StateSource, policy: &Policy) {
     if policy.config.estimator != TrainEstimator::Kf {
         return;
     }
     if let Some(kf) = source.kf_config_mut() {
         policy.config.kf.apply(kf);
-        // What the options set (already applied and validated) stays.
-        for (value, set) in options.settings() {
-            if let Some(v) = value {
-                set(kf, v);
-            }
-        }
     }
 }
 
@@ -208,72 +135,20 @@ pub struct WalkDescription {
     pub params_table: Option<PathBuf>,
     /// Walk on the paper's Table II constants rather than the shipped table.
     pub table_ii: bool,
-    /// Eq. (6)'s factor (default: the table's, else the paper's 0.5).
-    pub progress_factor: Option<f64>,
-    pub retarget_swing: bool,
-    pub first_step_on_command: bool,
-    pub preview_swings: bool,
-    pub max_accel_mps2: f64,
-    /// `PlannerConfig::ellipse_friction_factor` (0: the ellipses ignore the slip detector;
-    /// None: the gait's).
-    pub ellipse_friction_factor: Option<f64>,
-    /// `PlannerConfig::touchdown_friction_factor` (0: eq. (6)'s capture step unbounded; None:
-    /// the gait's).
-    pub touchdown_friction_factor: Option<f64>,
     /// A scenario file, applied over the rest.
     pub scenario: Option<PathBuf>,
     pub floor_friction: Option<f64>,
     /// One lateral push: at this time [s], of `push_dv_mps`.
     pub push_at_s: Option<f64>,
     pub push_dv_mps: f64,
-    pub mpc_friction: Option<f64>,
-    pub mpc_horizon: Option<usize>,
-    pub mpc_period_s: f64,
-    /// `Some(false)`: no slip handling; `Some(true)`: on whatever the gait; `None`: the gait's
-    /// default.
-    pub adapt_friction: Option<bool>,
-    /// With slip handling: the coefficient it starts from (`slip.initial_friction`).
-    pub initial_friction: Option<f64>,
-    /// With slip handling: the coefficient's floor (`slip.min_friction`; default: the gait's).
-    pub min_friction: Option<f64>,
-    /// With slip handling: the cap on raises after a slip (`slip.hold_cap_after_slip`; 0: off).
-    pub hold_cap_after_slip: Option<f64>,
-    /// With slip handling: the fraction of the asked ratio a hold raises the coefficient to
-    /// (`slip.hold_raise_fraction`, 0.1–1; default: the gait's, 0.8 for the trot and the free
-    /// gait, 1 for the walk).
-    pub hold_raise_fraction: Option<f64>,
-    /// With slip handling: the planner's reference speed above which it rests at the nominal
-    /// coefficient, m/s (`slip.max_speed_mps`; 0: no limit; default: the gait's, the walk's
-    /// 0.6).
-    pub slip_max_speed_mps: Option<f64>,
-    /// With slip handling: the coefficient below which the command's speed is capped for a
-    /// floor found slippery (`slip.slow_below_friction`; 0: never; default: the gait's, the
-    /// walk's 0.205).
-    pub slow_below_friction: Option<f64>,
-    /// With slip handling: that cap, m/s (`slip.slow_speed_mps`; default 0.3).
-    pub slow_speed_mps: Option<f64>,
-    pub free_pair_tolerance: Option<f64>,
-    pub free_support_margin_m: Option<f64>,
-    /// Whether the free gait's support rule applies (`FreePairing::support_check`).
-    pub free_support_check: Option<bool>,
-    pub free_unpaired: bool,
-    /// The walk: how far inside the other feet's triangle the capture point must lie for the
-    /// next leg of its order to swing, m (`WalkSupport::margin_m`; None: the default).
-    pub walk_support_margin_m: Option<f64>,
-    /// The walk: whether that check applies (`WalkSupport::check`; None: the default, on).
-    pub walk_support_check: Option<bool>,
-    /// The walk: the commanded speed from which that check is off, m/s
-    /// (`WalkSupport::max_speed_mps`; 0: none; None: the default, 0.6).
-    pub walk_support_max_speed_mps: Option<f64>,
-    /// Controller settings as `key=value`, applied last, in order, over everything above
-    /// (`eemp_core::settings`: `planner.*`, `mpc.*`, `swing.*`, `slip.*`, `schedule.*`, and
-    /// `filter.*` on the kf estimator). `eemp config show` lists the keys.
+    /// Controller settings as `key=value`, applied last, in order, over the gait's and the
+    /// robot's defaults (`eemp_core::settings`: `planner.*`, `mpc.*`, `swing.*`, `slip.*`,
+    /// `schedule.*`, and `filter.*` on the kf estimator). `eemp config show` lists the keys.
     pub set: Vec<String>,
 }
 
 impl Default for WalkDescription {
     fn default() -> Self {
-        let planner = PlannerConfig::default();
         WalkDescription {
             robot: None,
             allow_robot_mismatch: false,
@@ -289,35 +164,10 @@ impl Default for WalkDescription {
             params: None,
             params_table: None,
             table_ii: false,
-            progress_factor: None,
-            retarget_swing: planner.retarget_swing,
-            first_step_on_command: planner.first_step_on_command,
-            preview_swings: planner.preview_swings,
-            max_accel_mps2: planner.max_accel_mps2,
-            ellipse_friction_factor: planner.ellipse_friction_factor,
-            touchdown_friction_factor: planner.touchdown_friction_factor,
             scenario: None,
             floor_friction: None,
             push_at_s: None,
             push_dv_mps: 0.3,
-            mpc_friction: None,
-            mpc_horizon: None,
-            mpc_period_s: eemp_core::controller::ControllerConfig::default().mpc_period_s,
-            adapt_friction: None,
-            initial_friction: None,
-            min_friction: None,
-            hold_cap_after_slip: None,
-            hold_raise_fraction: None,
-            slip_max_speed_mps: None,
-            slow_below_friction: None,
-            slow_speed_mps: None,
-            free_pair_tolerance: None,
-            free_support_margin_m: None,
-            free_support_check: None,
-            free_unpaired: false,
-            walk_support_margin_m: None,
-            walk_support_check: None,
-            walk_support_max_speed_mps: None,
             set: Vec::new(),
         }
     }
@@ -344,23 +194,9 @@ pub struct BuiltWalk {
 }
 
 impl WalkDescription {
-    /// The options of slip handling's own settings the run sets (not whether it is on), by
-    /// their flags: the one list both refusals name.
-    fn slip_settings_set(&self) -> Vec<&'static str> {
-        set_flags([
-            ("--initial-friction", self.initial_friction.is_some()),
-            ("--min-friction", self.min_friction.is_some()),
-            ("--hold-cap-after-slip", self.hold_cap_after_slip.is_some()),
-            ("--hold-raise-fraction", self.hold_raise_fraction.is_some()),
-            ("--slip-max-speed", self.slip_max_speed_mps.is_some()),
-            ("--slow-below-friction", self.slow_below_friction.is_some()),
-            ("--slow-speed", self.slow_speed_mps.is_some()),
-        ])
-    }
-
-    /// The planner's and the MPC's options the run sets away from their defaults, by their
-    /// flags: a policy runs the gait, parameters, planner and MPC it was trained with (EEMP-RL
-    /// reads the table and controller of its config), so for a learned controller they would be
+    /// The options that choose EEMP's parameters, by their flags, where the run sets them: a
+    /// policy walks with the gait, parameters and controller it was trained with (EEMP-RL reads
+    /// the table and controller of its config), so for a learned controller they would be
     /// ignored, and are refused.
     fn eemp_options_set(&self) -> Vec<&'static str> {
         let defaults = WalkDescription::default();
@@ -369,34 +205,6 @@ impl WalkDescription {
             ("--params", self.params.is_some()),
             ("--params-table", self.params_table.is_some()),
             ("--table-ii", self.table_ii),
-            ("--progress-factor", self.progress_factor.is_some()),
-            (
-                "--retarget-swing",
-                self.retarget_swing != defaults.retarget_swing,
-            ),
-            (
-                "--first-step-on-command",
-                self.first_step_on_command != defaults.first_step_on_command,
-            ),
-            (
-                "--preview-swings",
-                self.preview_swings != defaults.preview_swings,
-            ),
-            (
-                "--max-accel",
-                self.max_accel_mps2 != defaults.max_accel_mps2,
-            ),
-            (
-                "--ellipse-friction-factor",
-                self.ellipse_friction_factor.is_some(),
-            ),
-            (
-                "--touchdown-friction-factor",
-                self.touchdown_friction_factor.is_some(),
-            ),
-            ("--mpc-friction", self.mpc_friction.is_some()),
-            ("--mpc-horizon", self.mpc_horizon.is_some()),
-            ("--mpc-period", self.mpc_period_s != defaults.mpc_period_s),
         ])
     }
 
@@ -426,76 +234,12 @@ impl WalkDescription {
                 ))
             }
         };
-        let free_flags = self.free_unpaired
-            || self.free_pair_tolerance.is_some()
-            || self.free_support_margin_m.is_some()
-            || self.free_support_check.is_some();
-        if free_flags && (!is_eemp || gait != Gait::Free) {
-            return Err(format!(
-                "--free-unpaired, --free-pair-tolerance and --free-support-margin are for \
-                 --controller eemp --gait free, not --controller {} --gait {gait} (EEMP-RL runs \
-                 the rule it was trained with)",
-                self.controller
-            ));
-        }
-        // The walk's support-check options the run sets, named as given.
-        let walk_tuning = set_flags([
-            (
-                "--walk-support-margin",
-                self.walk_support_margin_m.is_some(),
-            ),
-            (
-                "--walk-support-max-speed",
-                self.walk_support_max_speed_mps.is_some(),
-            ),
-        ]);
-        let walk_switch = self.walk_support_check.map(|on| match on {
-            true => "walk_support.check = true",
-            false => "--no-walk-support",
-        });
-        if (!walk_tuning.is_empty() || walk_switch.is_some()) && (!is_eemp || gait != Gait::Walk) {
-            return Err(format!(
-                "{}: the walk's support-check options are for --controller eemp --gait walk, \
-                 not --controller {} --gait {gait}",
-                walk_tuning
-                    .iter()
-                    .copied()
-                    .chain(walk_switch)
-                    .collect::<Vec<_>>()
-                    .join(", "),
-                self.controller
-            ));
-        }
-        if self.walk_support_check == Some(false) && !walk_tuning.is_empty() {
-            return Err(format!(
-                "{}: the walk's support check is off (--no-walk-support or walk_support.check = \
-                 false): drop one or the other",
-                walk_tuning.join(", ")
-            ));
-        }
         let planner_options = self.eemp_options_set();
         if !is_eemp && !planner_options.is_empty() {
             return Err(format!(
-                "{}: the planner's and the MPC's options are for --controller eemp, not {} (a \
-                 policy walks with the gait, parameters and controller it was trained with)",
+                "{}: EEMP's gait and parameters are for --controller eemp, not {} (a policy \
+                 walks with the gait, parameters and controller it was trained with)",
                 planner_options.join(", "),
-                self.controller
-            ));
-        }
-        let slip_settings = self.slip_settings_set();
-        if (self.adapt_friction.is_some() || !slip_settings.is_empty()) && !is_eemp {
-            let switch = self.adapt_friction.map(|on| match on {
-                true => "--adapt-friction",
-                false => "--no-adapt-friction",
-            });
-            return Err(format!(
-                "{}: slip handling is for --controller eemp, not {} (a policy runs with the \
-                 controller it was trained with)",
-                switch
-                    .into_iter()
-                    .chain(slip_settings.iter().copied())
-                    .collect::<Vec<_>>()
-                    .join(", "),
                 self.controller
             ));
         }
@@ -600,35 +344,14 @@ impl WalkDescription {
                 );
             }
         }
-        if let Some(f) = self.progress_factor {
-            let [lo, hi] = eemp_core::planner::PROGRESS_FACTOR_RANGE;
-            if !(f.is_finite() && (lo..=hi).contains(&f)) {
-                return Err(format!(
-                    "--progress-factor {f} is out of range: allowed [{lo}, {hi}] (0.5 = the \
-                     paper's eq. 6, 1 = its Algorithm 1)"
-                ));
-            }
-            if let Some(theirs) = params_table.as_ref().and_then(|t| t.progress_factor) {
-                if theirs != f {
-                    eprintln!(
-                        "note: --params-table was selected with progress factor {theirs}; \
-                         walking with --progress-factor {f} as asked"
-                    );
-                }
-            }
-        }
-        let planner = PlannerConfig {
+        let mut planner = PlannerConfig {
             gait,
-            progress_factor: progress_factor(self.progress_factor, params_table.as_ref()),
-            retarget_swing: self.retarget_swing,
-            max_accel_mps2: self.max_accel_mps2,
-            preview_swings: self.preview_swings,
-            free_pairing: self.free_pairing(),
-            walk_support: self.walk_support(),
-            first_step_on_command: self.first_step_on_command,
-            ellipse_friction_factor: self.ellipse_friction_factor,
-            touchdown_friction_factor: self.touchdown_friction_factor,
+            progress_factor: progress_factor(params_table.as_ref()),
+            ..PlannerConfig::default()
         };
+        // The gait file's values, resolved here so `--set` and `eemp config show` see them.
+        planner.ellipse_friction_factor = Some(planner.ellipse_friction_factor_in_force());
+        planner.touchdown_friction_factor = Some(planner.touchdown_friction_factor_in_force());
         planner.validate().map_err(|e| e.to_string())?;
         // Named by the options given (the profile's check would name its segment).
         if self.profile.is_none() {
@@ -655,59 +378,12 @@ impl WalkDescription {
         if let Some(p) = &self.profile {
             spec.profile = load_toml::<VelocityProfile>(p).map_err(|e| e.to_string())?;
         }
-        spec.controller.mpc_period_s = self.mpc_period_s;
-        if let Some(h) = self.mpc_horizon {
-            spec.controller.mpc.horizon = h;
-        }
-        if let Some(mu) = self.mpc_friction {
-            spec.controller.mpc.friction_coefficient = mu;
-        }
-        if let Some(on) = self.adapt_friction {
-            spec.controller.slip.adapt_friction = on;
-        }
-        if let Some(mu) = self.initial_friction {
-            spec.controller.slip.initial_friction = Some(mu);
-        }
-        if let Some(mu) = self.min_friction {
-            spec.controller.slip.min_friction = mu;
-        }
-        if let Some(cap) = self.hold_cap_after_slip {
-            spec.controller.slip.hold_cap_after_slip = cap;
-        }
-        if let Some(k) = self.hold_raise_fraction {
-            spec.controller.slip.hold_raise_fraction = k;
-        }
-        if let Some(v) = self.slip_max_speed_mps {
-            spec.controller.slip.max_speed_mps = v;
-        }
-        if let Some(mu) = self.slow_below_friction {
-            spec.controller.slip.slow_below_friction = mu;
-        }
-        if let Some(v) = self.slow_speed_mps {
-            spec.controller.slip.slow_speed_mps = v;
-        }
-        // Settings of slip handling where it is off would be silently ignored.
-        if !spec.controller.slip.adapt_friction && !slip_settings.is_empty() {
-            return Err(format!(
-                "{}: slip handling is off for this walk (--gait {gait}, --no-adapt-friction or \
-                 a suite method's adapt_friction = false): drop one or the other",
-                slip_settings.join(", ")
-            ));
-        }
-        // So would a cap speed where the cap never comes on.
-        if self.slow_speed_mps.is_some() && spec.controller.slip.slow_below_friction <= 0.0 {
-            return Err(format!(
-                "--slow-speed: the speed cap on slippery floors is off for this walk \
-                 (slip.slow_below_friction = 0, the {gait}'s default or as given): set \
-                 --slow-below-friction too (allowed: (0.15, 0.25]), or drop --slow-speed"
-            ));
-        }
         spec.seed = self.sensing.seed;
         spec.state_source = self.sensing.source(&robot)?;
         spec.allow_robot_mismatch = self.allow_robot_mismatch;
         #[cfg(feature = "learning")]
         if let Driver::Policy(p) = &driver {
-            adopt_policy_filter(&mut spec.state_source, p, &self.sensing.kf);
+            adopt_policy_filter(&mut spec.state_source, p);
         }
         spec.floor_friction = self.floor_friction;
         if let Some(path) = &self.scenario {
@@ -734,16 +410,6 @@ impl WalkDescription {
             }
         }
         spec.params_table = params_table;
-        // The floor the walk gets (option, scenario or robot file; patches aside).
-        let floor = spec
-            .floor_friction
-            .unwrap_or(robot.simulation.floor_friction);
-        if let Some(mu) = self.mpc_friction.filter(|mu| *mu > floor) {
-            eprintln!(
-                "note: --mpc-friction {mu} is above the floor's friction {floor}: the MPC may ask \
-                 the feet for more than the floor gives"
-            );
-        }
         if self.push_at_s.is_none() && self.push_dv_mps != WalkDescription::default().push_dv_mps {
             return Err(format!(
                 "--push-dv {} needs --push-at (the time of the push)",
@@ -764,6 +430,14 @@ impl WalkDescription {
         if spec.controller.mpc.weight_heat.is_none() {
             spec.controller.mpc.weight_heat = Some(robot.control.mpc_weight_heat.unwrap_or(0.0));
         }
+        if is_eemp && spec.controller.slip.initial_friction.is_none() {
+            spec.controller.slip.initial_friction = Some(
+                robot
+                    .control
+                    .slip_initial_friction
+                    .unwrap_or(eemp_core::slip::CAUTIOUS_START),
+            );
+        }
         apply_sets(&mut spec, &self.set, is_eemp)?;
         spec.validate().map_err(|e| e.to_string())?;
         Ok(BuiltWalk {
@@ -774,37 +448,6 @@ impl WalkDescription {
             params,
             params_table_path,
         })
-    }
-
-    fn walk_support(&self) -> WalkSupport {
-        let mut w = WalkSupport::default();
-        if let Some(m) = self.walk_support_margin_m {
-            w.margin_m = m;
-        }
-        if let Some(c) = self.walk_support_check {
-            w.check = c;
-        }
-        if let Some(v) = self.walk_support_max_speed_mps {
-            w.max_speed_mps = v;
-        }
-        w
-    }
-
-    fn free_pairing(&self) -> FreePairing {
-        if self.free_unpaired {
-            return FreePairing::UNPAIRED;
-        }
-        let mut p = FreePairing::default();
-        if let Some(t) = self.free_pair_tolerance {
-            p.pair_tolerance = t;
-        }
-        if let Some(m) = self.free_support_margin_m {
-            p.support_margin_m = m;
-        }
-        if let Some(c) = self.free_support_check {
-            p.support_check = c;
-        }
-        p
     }
 }
 
@@ -885,11 +528,11 @@ pub fn check_policy(
     learned_driver(controller, policy).map(|_| ())
 }
 
-/// Eq. (6)'s factor of a walk: the one given, else the one the parameter table was selected
-/// with (a table's entries are best with the factor they were found with), else the paper's 0.5.
-pub fn progress_factor(given: Option<f64>, table: Option<&ParamsTable>) -> f64 {
-    given
-        .or_else(|| table.and_then(|t| t.progress_factor))
+/// Eq. (6)'s factor of a walk before its `set`: the one the parameter table was selected with
+/// (a table's entries are best with the factor they were found with), else the paper's 0.5.
+pub fn progress_factor(table: Option<&ParamsTable>) -> f64 {
+    table
+        .and_then(|t| t.progress_factor)
         .unwrap_or(eemp_core::planner::PAPER_PROGRESS_FACTOR)
 }
 
@@ -992,18 +635,17 @@ mod tests {
     use eemp_core::planner::params_table::{Interpolation, TableEntry};
 
     #[test]
-    fn the_progress_factor_comes_from_the_option_then_the_table_then_the_paper() {
+    fn the_progress_factor_comes_from_the_table_then_the_paper() {
         let table = ParamsTable::new(
             Gait::Walk,
             Interpolation::Nearest,
             vec![TableEntry::new(0.3, &PlannerParams::default())],
         )
         .unwrap();
-        assert_eq!(progress_factor(None, None), 0.5);
-        assert_eq!(progress_factor(None, Some(&table)), 0.5);
+        assert_eq!(progress_factor(None), 0.5);
+        assert_eq!(progress_factor(Some(&table)), 0.5);
         let table = table.with_progress_factor(1.5).unwrap();
-        assert_eq!(progress_factor(None, Some(&table)), 1.5);
-        assert_eq!(progress_factor(Some(1.0), Some(&table)), 1.0);
+        assert_eq!(progress_factor(Some(&table)), 1.5);
     }
 
     #[test]
@@ -1035,62 +677,26 @@ mod tests {
             },
             "needs --policy",
         );
+        let sets = |gait: &str, sets: &[&str]| WalkDescription {
+            gait: gait.into(),
+            set: sets.iter().map(|s| s.to_string()).collect(),
+            ..Default::default()
+        };
         bad(
-            WalkDescription {
-                free_unpaired: true,
-                ..Default::default()
-            },
-            "are for --controller eemp --gait free",
-        );
-        bad(
-            WalkDescription {
-                walk_support_margin_m: Some(-0.05),
-                ..Default::default()
-            },
-            "are for --controller eemp --gait walk, not --controller eemp --gait trot",
-        );
-        bad(
-            WalkDescription {
-                gait: "walk".into(),
-                walk_support_margin_m: Some(-0.05),
-                walk_support_check: Some(false),
-                ..Default::default()
-            },
-            "the walk's support check is off",
-        );
-        bad(
-            WalkDescription {
-                gait: "walk".into(),
-                walk_support_margin_m: Some(0.1),
-                ..Default::default()
-            },
+            sets("walk", &["planner.walk_support.margin_m=0.1"]),
             "planner.walk_support.margin_m",
         );
-        // Slip handling's settings are named as given, where it is off and for a policy.
-        bad(
-            WalkDescription {
-                adapt_friction: Some(false),
-                hold_raise_fraction: Some(0.8),
-                slip_max_speed_mps: Some(0.5),
-                ..Default::default()
-            },
-            "--hold-raise-fraction, --slip-max-speed: slip handling is off for this walk",
-        );
-        // A cap speed where the cap is off (the trot's default) would be ignored.
-        bad(
-            WalkDescription {
-                slow_speed_mps: Some(0.2),
-                ..Default::default()
-            },
-            "--slow-speed: the speed cap on slippery floors is off for this walk",
-        );
-        assert!(WalkDescription {
-            slow_speed_mps: Some(0.2),
-            slow_below_friction: Some(0.2),
-            ..Default::default()
-        }
-        .build()
-        .is_ok());
+        bad(sets("trot", &["slip.slow_speed=0.2"]), "slow_speed");
+        let built = sets("walk", &["slip.slow_speed_mps=0.2", "mpc.horizon=12"])
+            .build()
+            .unwrap();
+        assert_eq!(built.spec.controller.slip.slow_speed_mps, 0.2);
+        assert_eq!(built.spec.controller.mpc.horizon, 12);
+        // A table's progress factor is the default a `set` replaces.
+        let built = sets("free", &["planner.progress_factor=1.0"])
+            .build()
+            .unwrap();
+        assert_eq!(built.spec.planner.progress_factor, 1.0);
         #[cfg(feature = "learning")]
         bad(
             WalkDescription {
@@ -1099,10 +705,10 @@ mod tests {
                     std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
                         .join("../../policies/a1_eemp_rl.safetensors"),
                 ),
-                slip_max_speed_mps: Some(0.5),
+                set: vec!["slip.max_speed_mps=0.5".into()],
                 ..Default::default()
             },
-            "--slip-max-speed: slip handling is for --controller eemp, not eemp-rl",
+            "only filter.* applies",
         );
         assert!(toml::from_str::<WalkDescription>("sped_mps = 1").is_err());
     }

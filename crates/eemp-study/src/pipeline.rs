@@ -52,6 +52,12 @@ pub struct Stage {
     /// [`Pipeline::load`].
     #[serde(default = "default_kind")]
     pub kind: String,
+    /// Inputs an experiment makes that this study stage reads as shipped: a fine-tune's parent
+    /// checkpoint, an earlier variant compared beside the current one. The study regenerates
+    /// from the sources and these files (pinned by the manifest like any input); `--experiments`
+    /// re-makes them too. Each must be one of `inputs`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub shipped_inputs: Vec<String>,
     #[serde(rename = "step")]
     pub steps: Vec<Step>,
 }
@@ -210,13 +216,23 @@ impl Pipeline {
         for p in &self.sources {
             check_relative(p)?;
         }
-        // The study is closed: running its stages alone regenerates every study artifact.
+        // The study is closed: running its stages alone regenerates every study artifact from
+        // the sources and the shipped checkpoints it names.
+        for s in &self.stages {
+            if let Some(i) = s.shipped_inputs.iter().find(|i| !s.inputs.contains(i)) {
+                return Err(format!(
+                    "stage '{}': shipped input {i} is not one of its inputs",
+                    s.name
+                ));
+            }
+        }
         for s in self.stages.iter().filter(|s| s.is_study()) {
-            for i in &s.inputs {
+            for i in s.inputs.iter().filter(|i| !s.shipped_inputs.contains(i)) {
                 if let Some(m) = self.maker_of(i).filter(|m| !m.is_study()) {
                     return Err(format!(
                         "stage '{}' is of the study but reads {i}, which the experiment '{}' \
-                         makes (mark that stage kind = \"study\", or this one an experiment)",
+                         makes (mark that stage kind = \"study\", this one an experiment, or \
+                         name the file in its shipped_inputs)",
                         s.name, m.name
                     ));
                 }

@@ -4,7 +4,6 @@
 
 use crate::ops::{Layout, Op};
 use crate::target::RerunTarget;
-use crate::VizError;
 use std::path::PathBuf;
 
 /// Logs operations and, at the end, writes everything out.
@@ -63,20 +62,4 @@ pub struct Opening<'a> {
     pub target: &'a RerunTarget,
     pub recording_name: &'a str,
     pub layout: &'a Layout,
-}
-
-pub fn open(recorder: &Recorder, opening: &Opening) -> Result<Box<dyn Backend>, VizError> {
-    match recorder {
-        Recorder::Python(python) => Ok(Box::new(crate::python::PythonBackend::open(
-            python, opening,
-        )?)),
-        #[cfg(feature = "sdk")]
-        Recorder::Sdk => Ok(Box::new(crate::sdk::SdkBackend::open(opening)?)),
-        #[cfg(not(feature = "sdk"))]
-        Recorder::Sdk => Err(VizError::Option(format!(
-            "this eemp was built without Rerun's Rust SDK: record through Python (pip install \
-             rerun-sdk=={}; --rerun-python PY or ${PYTHON_ENV}) or build it with `make viewer`",
-            crate::RERUN_VERSION
-        ))),
-    }
 }

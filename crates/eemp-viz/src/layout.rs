@@ -38,7 +38,7 @@ pub fn default_layout(run: &RunView) -> Layout {
         ],
         row_shares: vec![0.3, 0.15, 0.15, 0.4],
         column_shares: [0.6, 0.4],
-        timeline: crate::writer::TIMELINE.into(),
+        timeline: crate::ops::TIMELINE.into(),
     }
 }
 

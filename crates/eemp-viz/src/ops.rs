@@ -5,6 +5,9 @@
 
 use serde::Serialize;
 
+/// The simulation-time timeline every entity is logged on.
+pub const TIMELINE: &str = "sim_time";
+
 /// An sRGB colour with alpha, 0–255 each.
 pub type Rgba = [u8; 4];
 

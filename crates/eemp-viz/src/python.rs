@@ -62,7 +62,7 @@ impl PythonBackend {
     pub fn open(python: &Path, o: &Opening) -> Result<Self, VizError> {
         let how = format!(
             "record through Python with rerun-sdk {v} (pip install rerun-sdk=={v}; \
-             --rerun-python PY or ${env} picks the interpreter), or build the Rust recorder \
+             ${env} picks the interpreter), or build the Rust recorder \
              with `make viewer`",
             v = crate::RERUN_VERSION,
             env = crate::backend::PYTHON_ENV,

@@ -76,7 +76,7 @@ impl SdkBackend {
         let rec = &self.rec;
         match op {
             Op::Time { t } => {
-                rec.set_duration_secs(crate::writer::TIMELINE, *t);
+                rec.set_duration_secs(crate::ops::TIMELINE, *t);
                 Ok(())
             }
             Op::Transform {

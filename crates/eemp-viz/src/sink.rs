@@ -72,7 +72,7 @@ impl RerunSink {
             )));
         }
         let layout = crate::layout::default_layout(run);
-        let backend = crate::backend::open(
+        let backend = open_backend(
             &options.recorder,
             &crate::backend::Opening {
                 target: &options.target,
@@ -246,5 +246,26 @@ impl RerunSink {
             log_errors,
             flushed,
         }
+    }
+}
+
+/// The recorder's backend (the sink picks it, above the backends it can open).
+fn open_backend(
+    recorder: &crate::backend::Recorder,
+    opening: &crate::backend::Opening,
+) -> Result<Box<dyn crate::backend::Backend>, VizError> {
+    match recorder {
+        crate::backend::Recorder::Python(python) => Ok(Box::new(
+            crate::python::PythonBackend::open(python, opening)?,
+        )),
+        #[cfg(feature = "sdk")]
+        crate::backend::Recorder::Sdk => Ok(Box::new(crate::sdk::SdkBackend::open(opening)?)),
+        #[cfg(not(feature = "sdk"))]
+        crate::backend::Recorder::Sdk => Err(VizError::Option(format!(
+            "this eemp was built without Rerun's Rust SDK: record through Python (pip install \
+             rerun-sdk=={}; ${} picks the Python) or build it with `make viewer`",
+            crate::RERUN_VERSION,
+            crate::backend::PYTHON_ENV
+        ))),
     }
 }

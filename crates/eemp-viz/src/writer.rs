@@ -13,8 +13,7 @@ use eemp_sim::backend::Simulation;
 use nalgebra::{Rotation3, Vector3};
 use std::sync::mpsc::{Receiver, Sender};
 
-/// The simulation-time timeline every entity is logged on.
-pub const TIMELINE: &str = "sim_time";
+pub use crate::ops::TIMELINE;
 
 /// Force arrows: metres drawn per newton (a 12.5 kg A1 standing on four feet: ~3 cm each).
 const FORCE_M_PER_N: f64 = 0.001;

@@ -19,7 +19,7 @@ pub use qp_backend::{QpError, QpSolverKind};
 use serde::{Deserialize, Serialize};
 
 /// Allowed friction coefficients of the pyramid (config and [`ConvexMpc::set_friction_coefficient`]).
-pub const FRICTION_RANGE: [f64; 2] = [0.05, 2.0];
+pub use crate::robot::FRICTION_RANGE;
 
 /// MPC settings. Weights are on squared errors summed over the horizon.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

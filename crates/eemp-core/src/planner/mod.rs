@@ -7,17 +7,19 @@
 //! ellipses the MPC keeps pushing the body along on four stance legs.
 
 pub mod ellipse;
-pub mod gait;
+// The gait's types sit below the planner (the robot and slip handling read them too).
+pub use crate::gait;
+pub use plan::{Plan, PlanGeometry};
 pub mod params;
 pub mod params_stats;
 pub mod params_table;
+pub mod plan;
 pub mod swing_trajectory;
 pub mod touchdown;
 
 use crate::body_reference::BodyReference;
 use crate::body_state::RobotState;
 use crate::config_error::{check_range, ConfigError};
-use crate::controller::{Plan, PlanGeometry};
 use crate::kinematics::LegKinematics;
 use crate::leg::{Leg, LegMap};
 use crate::leg_control::FootReference;
@@ -39,37 +41,17 @@ pub const ELLIPSE_FRICTION_FACTOR_RANGE: [f64; 2] = [0.0, 3.0];
 /// Allowed `PlannerConfig::touchdown_friction_factor` (0: off).
 pub const TOUCHDOWN_FRICTION_FACTOR_RANGE: [f64; 2] = [0.0, 3.0];
 
-/// `PlannerConfig::touchdown_friction_factor` by default for the trot and the free gait (the
-/// walk's is 0, [`default_touchdown_friction_factor`]). Below 1 because μ̂ on a slippery floor
-/// reads above the floor's own coefficient and the trot's stance feet stand a hip's width beside
-/// the trunk, so a step as long as the whole cone still asks for more braking than the floor
-/// gives; under side pushes on a slippery floor ½ kept far more runs up than the whole cone or
-/// no limit, and as many as smaller factors.
-pub const DEFAULT_TOUCHDOWN_FRICTION_FACTOR: f64 = 0.5;
-
-/// The gait's `PlannerConfig::touchdown_friction_factor` where the config leaves it unset: 0.5
-/// ([`DEFAULT_TOUCHDOWN_FRICTION_FACTOR`]) for the trot and the free gait, 0 (the paper's
-/// unbounded step) for the walk. The walk stands on three feet, not on a diagonal it can tip
-/// over the way the trot rolls, and its slow pushed runs on a slippery floor fell more often
-/// with the step bounded, not less.
+/// The gait's `PlannerConfig::touchdown_friction_factor` where the config leaves it unset:
+/// `settings/<gait>.toml`'s (the trot's and the free gait's 0.5, the walk's 0, the paper's
+/// unbounded step; why, in those files).
 pub fn default_touchdown_friction_factor(gait: Gait) -> f64 {
-    match gait {
-        Gait::Walk => 0.0,
-        Gait::Trot | Gait::Free => DEFAULT_TOUCHDOWN_FRICTION_FACTOR,
-    }
+    crate::gait_settings::gait_number(&gait.to_string(), "planner", "touchdown_friction_factor")
 }
 
-/// The gait's `PlannerConfig::ellipse_friction_factor` where the config leaves it unset: 1 for
-/// the trot and the free gait, 0 (off) for the walk. The walk moves one leg at a time, so
-/// ellipses shrunk by a μ̂ that a push's own slides lowered (to 0.15 · 0.31 = 0.047 m on a 0.3
-/// floor) slow the steps that catch the trunk: under side pushes on a slippery floor the slow
-/// walk falls more often with the cone than without it, and on the slippery floors, under faster
-/// pushes and on the flat floor it walks the same either way.
+/// The gait's `PlannerConfig::ellipse_friction_factor` where the config leaves it unset:
+/// `settings/<gait>.toml`'s (1 for the trot and the free gait, 0, off, for the walk).
 pub fn default_ellipse_friction_factor(gait: Gait) -> f64 {
-    match gait {
-        Gait::Walk => 0.0,
-        Gait::Trot | Gait::Free => 1.0,
-    }
+    crate::gait_settings::gait_number(&gait.to_string(), "planner", "ellipse_friction_factor")
 }
 
 /// How much wider than eq. (6)'s commanded touchdown offset an ellipse shrunk into the friction

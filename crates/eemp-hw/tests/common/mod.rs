@@ -4,10 +4,10 @@
 //! another (each needs both cores in real time; cargo runs test binaries one at a time).
 
 use eemp_core::estimator::KfConfig;
-use eemp_core::hardware::safety::SafetyConfig;
 use eemp_core::planner::params_table::ParamsTable;
 use eemp_core::planner::{Gait, PlannerConfig, PlannerParams, VelocityCommand};
 use eemp_core::robot::RobotConfig;
+use eemp_core::safety::SafetyConfig;
 use eemp_hw::link::Faults;
 use eemp_hw::runner::{run_hw, HwOptions, HwReport, TorqueSpike, Transport};
 use eemp_hw::sim_robot::{run_sim_robot, RobotWire, SimRobotOptions, SimRobotReport};

@@ -35,7 +35,9 @@ def walk(gait: str = "trot", speed: float = 0.3, duration_s: float = 20.0, **kwa
     cot, manipulability, vel_rmse_mps, distance_m, energy_j, params_table, ... as a dict. kwargs:
     seed, lateral, yaw_rate, params (TOML), params_table (TOML; default: the robot's shipped
     table of the gait, tables/<robot>_<gait>.toml, when the working folder has it), table_ii
-    (True: the paper's Table II constants), estimator ("ground-truth" or "kf"), robot."""
+    (True: the paper's Table II constants), estimator ("ground-truth" or "kf"), robot, settings
+    (a list of "key=value" controller settings, as `eemp walk --set`, e.g.
+    ["mpc.horizon=12"]; `eemp config show` lists the keys)."""
     return json.loads(_walk_json(gait=gait, speed=speed, duration_s=duration_s, **kwargs))
 
 

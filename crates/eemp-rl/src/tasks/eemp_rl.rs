@@ -1233,19 +1233,6 @@ pub trait ParamsPolicy {
     }
 }
 
-#[cfg(feature = "learning")]
-impl ParamsPolicy for crate::policy::Policy {
-    fn act(&mut self, obs: &[f32]) -> Option<Vec<f32>> {
-        crate::policy::Policy::act(self, obs).ok()
-    }
-    fn check_robot(&self, robot: &RobotConfig) -> Result<(), String> {
-        crate::policy::Policy::check_robot(self, robot)
-    }
-    fn allow_robot_mismatch(&self) -> bool {
-        self.allow_robot_mismatch
-    }
-}
-
 /// The same action every decision.
 pub struct FixedAction(pub [f32; ACT_DIM]);
 

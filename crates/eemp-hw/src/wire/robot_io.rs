@@ -5,11 +5,11 @@
 
 use super::a1_protocol::{LowCmd, LowState, MotorCmd, MODE_SERVO, POS_STOP, VEL_STOP};
 use super::go2_idl;
-use super::safety::{JointCommand, MeasuredJoints, RobotCommand};
-use crate::body_state::LegJointState;
-use crate::estimator::ImuReading;
-use crate::leg::{Leg, LegMap};
-use crate::robot::MotorOrder;
+use eemp_core::body_state::LegJointState;
+use eemp_core::estimator::ImuReading;
+use eemp_core::leg::{Leg, LegMap};
+use eemp_core::robot::MotorOrder;
+use eemp_core::safety::{JointCommand, MeasuredJoints, RobotCommand};
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 
 /// What a state datagram tells the controller.
@@ -261,7 +261,7 @@ mod tests {
             tau: 0.5,
         };
         // The Go2 file's order: FR, FL, RR, RL.
-        let robot = crate::robot::RobotConfig::load(std::path::Path::new(concat!(
+        let robot = eemp_core::robot::RobotConfig::load(std::path::Path::new(concat!(
             env!("CARGO_MANIFEST_DIR"),
             "/../../robots/go2.toml"
         )))
@@ -340,7 +340,7 @@ mod tests {
             kd: 1.0,
             tau: 0.5,
         };
-        let order = crate::robot::MotorOrder::unitree();
+        let order = eemp_core::robot::MotorOrder::unitree();
         let wire = low_cmd(&cmd, &order).encode().unwrap();
         let back = LowCmd::decode(&wire).unwrap();
         for leg in Leg::ALL {

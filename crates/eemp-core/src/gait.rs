@@ -127,8 +127,9 @@ pub const WALK_SUPPORT_MARGIN_RANGE: [f64; 2] = [-0.2, 0.0];
 /// [`WalkSupport::margin_m`] by default, m (see [`WalkSupport::default`]).
 pub const DEFAULT_WALK_SUPPORT_MARGIN_M: f64 = -0.05;
 
-/// [`WalkSupport::max_speed_mps`] by default, m/s: where the walk's slip handling stops too.
-pub const DEFAULT_WALK_SUPPORT_MAX_SPEED_MPS: f64 = crate::slip::WALK_MAX_SPEED_MPS;
+/// [`WalkSupport::max_speed_mps`] by default, m/s: where the walk's slip handling stops too
+/// (`slip.max_speed_mps` in `settings/walk.toml`; a test keeps the two equal).
+pub const DEFAULT_WALK_SUPPORT_MAX_SPEED_MPS: f64 = 0.6;
 
 /// Allowed [`WalkSupport::max_speed_mps`], m/s.
 pub const WALK_SUPPORT_MAX_SPEED_RANGE: [f64; 2] = [0.0, 10.0];
