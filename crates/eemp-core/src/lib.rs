@@ -34,6 +34,7 @@ pub mod kinematics;
 pub mod leg;
 pub mod leg_control;
 pub mod metrics;
+pub mod pipeline;
 pub mod planner;
 pub mod robot;
 pub mod safety;

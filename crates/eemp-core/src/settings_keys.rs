@@ -538,7 +538,7 @@ mod tests {
                 };
                 for x in [lo, hi] {
                     let set = format!("{}={}", d.key, render(x));
-                    if let Err(e) = s.with_sets(&[set.clone()]) {
+                    if let Err(e) = s.with_sets(std::slice::from_ref(&set)) {
                         assert!(
                             !names_own_key(&e, &set),
                             "{gait}: {set} refused for its own key: {e}"
@@ -548,7 +548,7 @@ mod tests {
                 for x in [below, above] {
                     let set = format!("{}={}", d.key, render(x));
                     let e = s
-                        .with_sets(&[set.clone()])
+                        .with_sets(std::slice::from_ref(&set))
                         .expect_err(&format!("{gait}: {set} accepted"));
                     assert!(names_own_key(&e, &set), "{gait}: {set}: {e}");
                 }

@@ -18,14 +18,15 @@ use crate::wire::a1_protocol::LowState;
 use crate::wire::go2_idl;
 use crate::wire::robot_io::{go2_low_cmd, low_cmd, torque_command, SensedState};
 use eemp_core::body_state::{BodyState, RobotState};
-use eemp_core::control::{ControlInput, Controller};
-use eemp_core::controller::feet_world;
-use eemp_core::estimator::{ContactTrust, EstimatorInput, KfConfig, LinearKf};
+use eemp_core::control::Controller;
+use eemp_core::estimator::{KfConfig, LinearKf};
 use eemp_core::kinematics::LegKinematics;
 use eemp_core::leg::{Leg, LegMap};
+use eemp_core::pipeline::{ControlPipeline, Sensed};
 use eemp_core::planner::VelocityCommand;
 use eemp_core::robot::RobotConfig;
 use eemp_core::safety::{Damping, Intervention, RobotCommand, SafetyConfig, SafetyLayer};
+use eemp_sim::backend::EvaluatedAt;
 use eemp_sim::Simulation;
 use nalgebra::Vector3;
 use serde::Serialize;
@@ -291,13 +292,13 @@ pub fn run_hw(
     };
     let period = 1.0 / opts.rate_hz;
     let wall0 = Instant::now();
-    let mut kf: Option<LinearKf> = None;
-    let mut trust = ContactTrust::new(0.0);
+    // Estimate → controller, as in simulation; the filter starts at the first state.
+    let mut pipeline = ControlPipeline::new(0.0);
+    let mut started = false;
     let mut newest_tick: Option<u32> = None;
     let mut first_tick_s = 0.0;
     let mut estimate: Option<RobotState> = None;
-    let mut last_torques = LegMap::splat(Vector3::zeros());
-    let mut cmd = torque_command(&last_torques);
+    let mut cmd = torque_command(&LegMap::splat(Vector3::zeros()));
     let mut vel_cmd = VelocityCommand::default();
     let mut cycle = 0usize;
     let mut spiked = false;
@@ -364,7 +365,7 @@ pub fn run_hw(
         if let Some(sensed) = newest {
             report.last_state_s = Some(now);
             safety.observe(sensed.measured(now));
-            if kf.is_none() {
+            if !started {
                 first_tick_s = sensed.tick_s;
             }
             let t = sensed.tick_s - first_tick_s;
@@ -375,17 +376,15 @@ pub fn run_hw(
                 e.observe((t - prev_t).max(0.0), prev_qd, prev_tau);
             }
             last_state = Some((t, qd, sensed.tau));
-            let kf = match &mut kf {
-                Some(k) => k,
-                None => {
-                    let start = start_state(&kin, robot.leg.foot_radius_m, &sensed, t);
-                    trust = ContactTrust::new(t);
-                    kf.insert(
-                        LinearKf::new(opts.kf.clone(), kin.clone(), &start)
-                            .map_err(|e| e.to_string())?,
-                    )
-                }
-            };
+            if !started {
+                let start = start_state(&kin, robot.leg.foot_radius_m, &sensed, t);
+                pipeline.set_filter(Some(
+                    LinearKf::new(opts.kf.clone(), kin.clone(), &start)
+                        .map_err(|e| e.to_string())?,
+                ));
+                pipeline.restart(t);
+                started = true;
+            }
             let seen = RobotState {
                 time_s: t,
                 body: BodyState {
@@ -396,29 +395,19 @@ pub fn run_hw(
                 },
                 joints: sensed.joints,
             };
-            let w = trust.update(controller.plan(), &kin, &seen, &last_torques);
-            let est = kf.update(&EstimatorInput {
-                time_s: t,
-                imu: sensed.imu,
-                joints: sensed.joints,
-                contact_trust: w,
-            });
-            model.set_state(&est);
-            if controller.needs_dynamics() {
-                model.prepare();
-            } else {
-                model.prepare_kinematics();
-            }
             vel_cmd = command_at(t);
-            let feet = feet_world(&kin, &est);
-            let out = controller.control(&ControlInput {
-                state: &est,
-                feet_world: &feet,
-                command: vel_cmd,
-                dynamics: &model,
-            });
-            last_torques = out.torques;
-            cmd = torque_command(&out.torques);
+            let update = pipeline.update(
+                &Sensed {
+                    seen,
+                    imu: Some(sensed.imu),
+                },
+                &kin,
+                controller,
+                vel_cmd,
+                &mut EvaluatedAt(&mut model),
+            );
+            let est = update.estimate;
+            cmd = torque_command(&update.output.torques);
             if let Some(sp) = opts.torque_spike {
                 // Once, at the first controller step at or after its time (states can be lost).
                 if !spiked && t >= sp.at_s {

@@ -3,14 +3,14 @@
 
 use crate::envs::{lock, value_error};
 use eemp_core::body_state::{BodyState, LegJointState, RobotState};
-use eemp_core::control::{ControlInput, Controller};
-use eemp_core::controller::feet_world;
+use eemp_core::control::Controller;
 use eemp_core::eemp_controller::EempController;
 use eemp_core::kinematics::LegKinematics;
 use eemp_core::leg::{Leg, LegMap};
+use eemp_core::pipeline::{ControlPipeline, Sensed};
 use eemp_core::planner::VelocityCommand;
 use eemp_rl::run::{Sensing, WalkDescription};
-use eemp_sim::backend::{build_model, Simulation};
+use eemp_sim::backend::{build_model, EvaluatedAt, Simulation};
 use eemp_sim::walk::{eemp_controller, reset_to_start, StartPose};
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 use numpy::{AllowTypeChange, PyArray1, PyArrayLike1};
@@ -121,6 +121,8 @@ struct ControllerState {
     /// swing law needs, as the hardware runner gets them.
     model: Simulation,
     kin: LegKinematics,
+    /// The control update the simulation and the robot run, on the state as given.
+    pipeline: ControlPipeline,
 }
 
 /// EEMP as a function of (state, command) → joint torques, for another simulator's loop.
@@ -154,6 +156,7 @@ impl PyEempController {
                 controller,
                 model,
                 kin: LegKinematics::new(&robot),
+                pipeline: ControlPipeline::new(0.0),
             }),
         })
     }
@@ -194,20 +197,21 @@ impl PyEempController {
         }
         let mut g = lock(&self.inner, py);
         let s = &mut *g;
-        s.model.set_state(&state);
-        s.model.prepare();
-        let feet = feet_world(&s.kin, &state);
-        let out = s.controller.control(&ControlInput {
-            state: &state,
-            feet_world: &feet,
-            command: VelocityCommand {
+        let update = s.pipeline.update(
+            &Sensed {
+                seen: state,
+                imu: None,
+            },
+            &s.kin,
+            &mut s.controller,
+            VelocityCommand {
                 vx_mps: vx,
                 vy_mps: vy,
                 yaw_rate_rps: wz,
             },
-            dynamics: &s.model,
-        });
-        Ok(PyArray1::from_vec(py, flat(&out.torques)))
+            &mut EvaluatedAt(&mut s.model),
+        );
+        Ok(PyArray1::from_vec(py, flat(&update.output.torques)))
     }
 
     /// The legs in stance in the last step's plan (FR, FL, RR, RL).

@@ -554,3 +554,19 @@ impl DynamicsModel for Simulation {
         }
     }
 }
+
+/// The model evaluated at each estimate the control pipeline hands it (`eemp hw`, Python): a
+/// model of the robot file, set to the state and never stepped.
+pub struct EvaluatedAt<'a>(pub &'a mut Simulation);
+
+impl eemp_core::pipeline::DynamicsAt for EvaluatedAt<'_> {
+    fn at(&mut self, estimate: &RobotState, full: bool) -> &dyn DynamicsModel {
+        self.0.set_state(estimate);
+        if full {
+            self.0.prepare();
+        } else {
+            self.0.prepare_kinematics();
+        }
+        &*self.0
+    }
+}

@@ -4,10 +4,12 @@
 use crate::backend::Simulation;
 use crate::sensors::{SensorNoise, Sensors};
 use eemp_core::body_state::RobotState;
-use eemp_core::control::{ControlInput, Controller};
-use eemp_core::controller::{feet_world, ControlOutput, Plan};
-use eemp_core::estimator::{EstimatorInput, KfConfig, LinearKf};
+use eemp_core::control::Controller;
+
+use eemp_core::controller::{ControlOutput, Plan};
+use eemp_core::estimator::{KfConfig, LinearKf};
 use eemp_core::leg::LegMap;
+use eemp_core::pipeline::{ControlPipeline, Prepared, Sensed};
 use eemp_core::planner::VelocityCommand;
 use nalgebra::Vector3;
 use std::time::Instant;
@@ -245,12 +247,13 @@ pub struct ClosedLoop {
     wall_start: Instant,
     loaded: LegMap<bool>,
     foot_normal_n: LegMap<f64>,
-    estimator: Option<(LinearKf, Sensors)>,
+    /// The simulated IMU and encoders, where the controller runs on the filter.
+    sensors: Option<Sensors>,
+    /// Estimate → controller, as on the robot.
+    pipeline: ControlPipeline,
     /// The state the controller saw at the last step, when it is an estimate.
     last_estimate: Option<RobotState>,
     estimation: EstimationStats,
-    trust: ContactTrust,
-    last_torques: LegMap<Vector3<f64>>,
 }
 
 /// What one step of the loop ended in.
@@ -274,11 +277,10 @@ impl ClosedLoop {
     pub fn new(sim: Simulation, pushes: &[Push], limits: FallLimits) -> Self {
         let t_start = sim.time_s();
         ClosedLoop {
-            estimator: None,
+            sensors: None,
+            pipeline: ControlPipeline::new(t_start),
             last_estimate: None,
             estimation: EstimationStats::default(),
-            trust: ContactTrust::new(t_start),
-            last_torques: LegMap::splat(Vector3::zeros()),
             sim,
             pending: pushes.to_vec(),
             pulses: Vec::new(),
@@ -311,17 +313,19 @@ impl ClosedLoop {
         &mut self,
         source: &StateSource,
     ) -> Result<(), eemp_core::config_error::ConfigError> {
-        self.estimator = match source {
-            StateSource::GroundTruth => None,
+        match source {
+            StateSource::GroundTruth => {
+                self.pipeline.set_filter(None);
+                self.sensors = None;
+            }
             StateSource::Kf { kf, sensors, seed } => {
                 self.sim.prepare_kinematics();
                 let start = self.sim.ground_truth_state();
-                Some((
-                    LinearKf::new(kf.clone(), self.sim.kinematics().clone(), &start)?,
-                    Sensors::new(sensors.clone(), *seed, self.sim.timestep_s())?,
-                ))
+                let filter = LinearKf::new(kf.clone(), self.sim.kinematics().clone(), &start)?;
+                self.sensors = Some(Sensors::new(sensors.clone(), *seed, self.sim.timestep_s())?);
+                self.pipeline.set_filter(Some(filter));
             }
-        };
+        }
         self.last_estimate = None;
         Ok(())
     }
@@ -350,11 +354,10 @@ impl ClosedLoop {
         self.wall_start = Instant::now();
         self.loaded = LegMap::splat(true);
         self.foot_normal_n = LegMap::splat(0.0);
-        self.trust = ContactTrust::new(self.t_start);
-        self.last_torques = LegMap::splat(Vector3::zeros());
+        self.pipeline.restart(self.t_start);
         self.estimation = EstimationStats::default();
         self.last_estimate = None;
-        if let Some((kf, sensors)) = self.estimator.as_mut() {
+        if let (Some(kf), Some(sensors)) = (self.pipeline.filter_mut(), self.sensors.as_mut()) {
             self.sim.prepare_kinematics();
             kf.reset(&self.sim.ground_truth_state());
             sensors.clear();
@@ -432,59 +435,44 @@ impl ClosedLoop {
             self.sim.prepare_kinematics();
         }
         let truth = self.sim.ground_truth_state();
-        let state = match self.estimator.is_some() {
-            false => truth,
-            true => {
+        let sensed = match self.sensors.as_mut() {
+            None => Sensed {
+                seen: truth,
+                imu: None,
+            },
+            Some(sensors) => {
                 // Encoders and the IMU; the attitude comes from the IMU as on the A1.
-                let imu = self.sim.imu();
-                let seen = self
-                    .estimator
-                    .as_mut()
-                    .expect("checked")
-                    .1
-                    .read(imu, &truth.joints);
-                // Trust from the plan, or from the sensed joints, attitude and last torques.
-                let sensed = RobotState {
-                    time_s: truth.time_s,
-                    body: eemp_core::body_state::BodyState {
-                        r_world_body: seen.imu.r_world_body,
-                        ..truth.body
+                let seen = sensors.read(self.sim.imu(), &truth.joints);
+                Sensed {
+                    seen: RobotState {
+                        time_s: truth.time_s,
+                        body: eemp_core::body_state::BodyState {
+                            r_world_body: seen.imu.r_world_body,
+                            ..truth.body
+                        },
+                        joints: seen.joints,
                     },
-                    joints: seen.joints,
-                };
-                let trust = self.trust.update(
-                    controller.plan(),
-                    self.sim.kinematics(),
-                    &sensed,
-                    &self.last_torques,
-                );
-                let kf = &mut self.estimator.as_mut().expect("checked").0;
-                let est = kf.update(&EstimatorInput {
-                    time_s: truth.time_s,
-                    imu: seen.imu,
-                    joints: seen.joints,
-                    contact_trust: trust,
-                });
-                self.estimation.sq_vel += (est.body.v_world - truth.body.v_world).norm_squared();
-                self.estimation.sq_pos += (est.body.p_world - truth.body.p_world).norm_squared();
-                self.estimation.n += 1;
-                est
+                    imu: Some(seen.imu),
+                }
             }
         };
-        if self.estimator.is_some() {
+        let t1 = Instant::now();
+        // The controller's dynamics are the simulator's own, at the true state.
+        let update = self.pipeline.update(
+            &sensed,
+            self.sim.kinematics(),
+            controller,
+            command,
+            &mut Prepared(&self.sim),
+        );
+        let t3 = Instant::now();
+        let (state, feet, output) = (update.estimate, update.feet_world, update.output);
+        if self.sensors.is_some() {
+            self.estimation.sq_vel += (state.body.v_world - truth.body.v_world).norm_squared();
+            self.estimation.sq_pos += (state.body.p_world - truth.body.p_world).norm_squared();
+            self.estimation.n += 1;
             self.last_estimate = Some(state);
         }
-        let t1 = Instant::now();
-        let feet = feet_world(self.sim.kinematics(), &state);
-        let t2 = Instant::now();
-        let output = controller.control(&ControlInput {
-            state: &state,
-            feet_world: &feet,
-            command,
-            dynamics: &self.sim,
-        });
-        let t3 = Instant::now();
-        self.last_torques = output.torques;
         observer(&StepRecord {
             state: &truth,
             estimate: &state,
@@ -549,13 +537,14 @@ impl ClosedLoop {
                 stats.mpc_failures += 1;
             }
             stats.stages.mpc_s += ev.solve_time_s;
-            stats.stages.leg_control_s += (t3 - t2).as_secs_f64() - ev.solve_time_s - planning;
-        } else {
-            stats.stages.leg_control_s += (t3 - t2).as_secs_f64() - planning;
         }
+        let control_s = (t3 - t1).as_secs_f64() - update.estimate_s;
+        let solve_s = output.mpc_event.as_ref().map_or(0.0, |ev| ev.solve_time_s);
+        stats.stages.leg_control_s += control_s - solve_s - planning;
         // Physics includes reading the state (and the estimator, when there is one).
-        stats.stages.physics_s += (t1 - t0).as_secs_f64() + (t5 - t4).as_secs_f64();
-        stats.stages.planner_s += (t2 - t1).as_secs_f64() + planning;
+        stats.stages.physics_s +=
+            (t1 - t0).as_secs_f64() + update.estimate_s + (t5 - t4).as_secs_f64();
+        stats.stages.planner_s += planning;
         stats.stages.observer_s += (t4 - t3).as_secs_f64();
         stats.steps += 1;
         stats.sim_time_s = stats.steps as f64 * self.sim.timestep_s();
