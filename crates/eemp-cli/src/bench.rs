@@ -11,10 +11,10 @@
 
 use eemp_core::body_reference::BodyReference;
 use eemp_core::body_state::BodyState;
-use eemp_core::controller::ControllerConfig;
 use eemp_core::convex_mpc::{ConvexMpc, MpcConfig, MpcInput, QpSolverKind};
 use eemp_core::kinematics::LegKinematics;
 use eemp_core::leg::{Leg, LegMap};
+use eemp_core::locomotion::ControllerConfig;
 use eemp_core::robot::RobotConfig;
 use eemp_core::stand_profile::BodyMotionProfile;
 use eemp_sim::mjcf::SceneExtras;

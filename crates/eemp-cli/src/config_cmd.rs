@@ -5,8 +5,8 @@
 //! (`settings/<gait>.toml`), the robot file's `[control]`, the per-speed table (eq. 6's progress
 //! factor), and the run's `--set`.
 
-use eemp_core::controller::ControllerConfig;
 use eemp_core::gait_settings::gait_file;
+use eemp_core::locomotion::ControllerConfig;
 use eemp_core::planner::{Gait, PlannerConfig};
 use eemp_core::settings::{leaves, ControllerSettings, TABLES};
 use eemp_core::settings_keys::doc;

@@ -293,7 +293,7 @@ pub fn run_hw_cmd(args: &HwArgs) -> Result<(), String> {
     let kin = eemp_core::kinematics::LegKinematics::new(&robot);
     let report = run_hw(&robot, controller.as_mut(), &|_| command, &opts, &mut |c| {
         if let Some(e) = c.estimate {
-            let output = eemp_core::controller::ControlOutput {
+            let output = eemp_core::locomotion::ControlOutput {
                 torques: LegMap::from_fn(|leg| {
                     let j = c.sent[leg];
                     nalgebra::Vector3::new(j[0].tau, j[1].tau, j[2].tau)
@@ -307,7 +307,7 @@ pub fn run_hw_cmd(args: &HwArgs) -> Result<(), String> {
                 plan: None,
                 command: c.command,
                 output: &output,
-                feet_world: &eemp_core::controller::feet_world(&kin, e),
+                feet_world: &eemp_core::locomotion::feet_world(&kin, e),
                 contacts: LegMap::splat(false),
                 loaded: LegMap::splat(false),
                 foot_normal_n: LegMap::splat(0.0),

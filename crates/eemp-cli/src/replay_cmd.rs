@@ -10,8 +10,8 @@
 
 use crate::video::{write_gif, VideoFrame, FPS};
 use eemp_core::body_state::{BodyState, LegJointState, RobotState};
-use eemp_core::controller::ControlOutput;
 use eemp_core::leg::{Leg, LegMap};
+use eemp_core::locomotion::ControlOutput;
 use eemp_core::planner::VelocityCommand;
 use eemp_sim::closed_loop::StepRecord;
 use nalgebra::{UnitQuaternion, Vector3};

@@ -3,7 +3,7 @@
 use crate::output::{create_dir, write_json, Trace};
 use crate::plots::{line_panels, Panel, Series};
 use eemp_core::config_error::load_toml;
-use eemp_core::controller::ControllerConfig;
+use eemp_core::locomotion::ControllerConfig;
 use eemp_core::stand_profile::BodyMotionProfile;
 use eemp_sim::closed_loop::{percentile, Push};
 use eemp_sim::stand::run_stand_on;

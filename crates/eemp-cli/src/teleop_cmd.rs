@@ -300,7 +300,7 @@ pub fn run(args: &TeleopArgs) -> Result<(), String> {
             let v = b.v_heading();
             [v.x, v.y, b.omega_world.z]
         };
-        let feet = eemp_core::controller::feet_world(&kin, r.state);
+        let feet = eemp_core::locomotion::feet_world(&kin, r.state);
         rows.push(Row {
             t: r.state.time_s,
             cmd: [r.command.vx_mps, r.command.vy_mps, r.command.yaw_rate_rps],

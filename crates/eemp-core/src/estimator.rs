@@ -12,9 +12,9 @@
 
 use crate::body_state::{BodyState, LegJointState, RobotState};
 use crate::config_error::{check_range, ConfigError};
-use crate::controller::Plan;
 use crate::kinematics::LegKinematics;
 use crate::leg::{Leg, LegMap};
+use crate::locomotion::Plan;
 use nalgebra::{SMatrix, SVector, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 

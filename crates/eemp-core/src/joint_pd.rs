@@ -3,10 +3,10 @@
 //! controller holds a pose.
 
 use crate::config_error::{check_range, ConfigError};
-use crate::control::{ControlInput, Controller};
-use crate::controller::ControlOutput;
+use crate::controller::{ControlInput, Controller};
 use crate::leg::LegMap;
 use crate::leg_control::clamp_torque;
+use crate::locomotion::ControlOutput;
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 

@@ -5,8 +5,11 @@
 //! - [`leg_control`]: swing control, eq. (1), and the stance torque map.
 //! - [`slip`]: the MPC's friction coefficient lowered when a stance foot slides.
 //! - [`planner`]: the energy-efficient planner, eqs. (5)–(7) and Algorithm 1.
-//! - [`control`]: the [`control::Controller`] interface every controller implements;
-//!   [`eemp_controller`] (EEMP walking and standing), [`joint_pd`] (joint PD, how policies act).
+//! - [`pipeline`]: the control update every loop runs, top to bottom: estimate → controller
+//!   (→ safety on a robot).
+//! - [`controller`]: the [`controller::Controller`] interface every controller implements;
+//!   [`eemp`] (EEMP walking and standing: the planner over [`locomotion`], which runs the MPC
+//!   and the leg laws), [`joint_pd`] (joint PD, how policies act).
 //! - [`estimator`]: attitude from the IMU and a linear Kalman filter for trunk position and
 //!   velocity from IMU + leg kinematics (what the robot knows of itself).
 //! - [`safety`]: the safety layer every command to a robot passes (limits, watchdog, damping).
@@ -20,10 +23,9 @@
 pub mod body_reference;
 pub mod body_state;
 pub mod config_error;
-pub mod control;
 pub mod controller;
 pub mod convex_mpc;
-pub mod eemp_controller;
+pub mod eemp;
 pub mod energy;
 pub mod estimator;
 pub mod gait;
@@ -33,6 +35,7 @@ pub mod joint_pd;
 pub mod kinematics;
 pub mod leg;
 pub mod leg_control;
+pub mod locomotion;
 pub mod metrics;
 pub mod pipeline;
 pub mod planner;

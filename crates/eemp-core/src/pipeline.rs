@@ -6,19 +6,19 @@
 //!    (ground truth in simulation, the caller's state in Python);
 //! 2. **the controller** ([`Controller`]): for EEMP the planner (Algorithm 1, with the slip
 //!    detector's friction estimate), the MPC (eq. 2) and the leg laws (eq. 1), in
-//!    [`crate::eemp_controller`];
+//!    [`crate::eemp`];
 //! 3. **safety** ([`crate::safety`]) on a robot: the runner passes the torques through the
 //!    safety layer, whose watchdog keeps the robot's command timing.
 //!
 //! The loops differ only in where the sensed state comes from and where the torques go.
 
 use crate::body_state::RobotState;
-use crate::control::{ControlInput, Controller};
-use crate::controller::{feet_world, ControlOutput};
+use crate::controller::{ControlInput, Controller};
 use crate::estimator::{ContactTrust, EstimatorInput, ImuReading, LinearKf};
 use crate::kinematics::LegKinematics;
 use crate::leg::LegMap;
 use crate::leg_control::DynamicsModel;
+use crate::locomotion::{feet_world, ControlOutput};
 use crate::planner::VelocityCommand;
 use nalgebra::Vector3;
 use std::time::Instant;

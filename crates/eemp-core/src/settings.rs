@@ -17,8 +17,8 @@
 //! A key that does not exist is refused by name (serde's `deny_unknown_fields` on every struct),
 //! as is a value of the wrong type or out of its range.
 
-use crate::controller::ControllerConfig;
 use crate::estimator::KfConfig;
+use crate::locomotion::ControllerConfig;
 use crate::planner::PlannerConfig;
 use toml::Value;
 

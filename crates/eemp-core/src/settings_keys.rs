@@ -411,9 +411,9 @@ pub fn doc(key: &str) -> Option<&'static KeyDoc> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::controller::ControllerConfig;
     use crate::convex_mpc::MpcConfig;
     use crate::estimator::KfConfig;
+    use crate::locomotion::ControllerConfig;
     use crate::planner::{Gait, PlannerConfig};
     use crate::settings::{leaves, ControllerSettings};
     use crate::slip::SlipConfig;

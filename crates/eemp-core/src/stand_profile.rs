@@ -3,8 +3,8 @@
 use crate::body_reference::BodyReference;
 use crate::body_state::RobotState;
 use crate::config_error::{check_range, ConfigError};
-use crate::controller::Plan;
 use crate::leg::LegMap;
+use crate::locomotion::Plan;
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;

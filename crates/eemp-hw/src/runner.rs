@@ -18,7 +18,7 @@ use crate::wire::a1_protocol::LowState;
 use crate::wire::go2_idl;
 use crate::wire::robot_io::{go2_low_cmd, low_cmd, torque_command, SensedState};
 use eemp_core::body_state::{BodyState, RobotState};
-use eemp_core::control::Controller;
+use eemp_core::controller::Controller;
 use eemp_core::estimator::{KfConfig, LinearKf};
 use eemp_core::kinematics::LegKinematics;
 use eemp_core::leg::{Leg, LegMap};

@@ -3,8 +3,8 @@
 
 use crate::envs::{lock, value_error};
 use eemp_core::body_state::{BodyState, LegJointState, RobotState};
-use eemp_core::control::Controller;
-use eemp_core::eemp_controller::EempController;
+use eemp_core::controller::Controller;
+use eemp_core::eemp::EempController;
 use eemp_core::kinematics::LegKinematics;
 use eemp_core::leg::{Leg, LegMap};
 use eemp_core::pipeline::{ControlPipeline, Sensed};

@@ -8,7 +8,7 @@
 //! - [`cma_table`]: CMA-ES on EEMP-RL's residual (the second optimiser), a re-tuned table.
 //! - [`train`]: the training loop with `train.csv`, checkpoints and resume.
 //! - [`run`]: the one description of a walk by any controller, validated once and run.
-//! - [`policy`]: policy files; [`controller`]: a trained policy as a [`eemp_core::control::Controller`].
+//! - [`policy`]: policy files; [`controller`]: a trained policy as a [`eemp_core::controller::Controller`].
 
 // Time, env and parameter indices (t, e, i) are the algorithm's notation here.
 #![allow(clippy::needless_range_loop)]

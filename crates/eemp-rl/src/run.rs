@@ -13,7 +13,7 @@ use crate::config::{TaskKind, TrainEstimator};
 #[cfg(feature = "learning")]
 use crate::policy::Policy;
 use eemp_core::config_error::load_toml;
-use eemp_core::control::Controller;
+use eemp_core::controller::Controller;
 use eemp_core::planner::params_table::ParamsTable;
 use eemp_core::planner::{Gait, PlannerConfig, PlannerParams, VelocityCommand};
 use eemp_core::robot::RobotConfig;

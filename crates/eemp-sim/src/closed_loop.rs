@@ -4,11 +4,11 @@
 use crate::backend::Simulation;
 use crate::sensors::{SensorNoise, Sensors};
 use eemp_core::body_state::RobotState;
-use eemp_core::control::Controller;
+use eemp_core::controller::Controller;
 
-use eemp_core::controller::{ControlOutput, Plan};
 use eemp_core::estimator::{KfConfig, LinearKf};
 use eemp_core::leg::LegMap;
+use eemp_core::locomotion::{ControlOutput, Plan};
 use eemp_core::pipeline::{ControlPipeline, Prepared, Sensed};
 use eemp_core::planner::VelocityCommand;
 use nalgebra::Vector3;

@@ -8,10 +8,10 @@ use crate::closed_loop::{
 };
 use crate::mjcf::SceneExtras;
 use eemp_core::config_error::ConfigError;
-use eemp_core::controller::{ControllerConfig, LocomotionController};
-use eemp_core::eemp_controller::StandController;
+use eemp_core::eemp::StandController;
 use eemp_core::kinematics::LegKinematics;
 use eemp_core::leg::LegMap;
+use eemp_core::locomotion::{ControllerConfig, LocomotionController};
 use eemp_core::planner::VelocityCommand;
 use eemp_core::robot::RobotConfig;
 use eemp_core::stand_profile::{BodyMotionProfile, StandPlanner};

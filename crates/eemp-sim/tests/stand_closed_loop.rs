@@ -1,7 +1,7 @@
 //! Short closed-loop standing runs: rise, hold, follow, absorb a push.
 
-use eemp_core::controller::ControllerConfig;
 use eemp_core::joint_pd::{JointPd, PdGains};
+use eemp_core::locomotion::ControllerConfig;
 use eemp_core::planner::VelocityCommand;
 use eemp_core::robot::RobotConfig;
 use eemp_core::stand_profile::BodyMotionProfile;

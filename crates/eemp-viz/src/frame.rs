@@ -2,8 +2,8 @@
 //! logging work happens on the recorder's thread.
 
 use eemp_core::body_state::RobotState;
-use eemp_core::controller::PlanGeometry;
 use eemp_core::leg::{Leg, LegMap};
+use eemp_core::locomotion::PlanGeometry;
 use eemp_core::planner::VelocityCommand;
 use nalgebra::Vector3;
 

@@ -26,8 +26,8 @@ use super::model_free::TrainPushes;
 use crate::env::{Env, StepInfo};
 use eemp_core::body_state::RobotState;
 use eemp_core::config_error::{check_range, ConfigError};
-use eemp_core::control::Controller;
-use eemp_core::eemp_controller::{EempController, ParamsSource};
+use eemp_core::controller::Controller;
+use eemp_core::eemp::{EempController, ParamsSource};
 use eemp_core::kinematics::LegKinematics;
 use eemp_core::leg::{Leg, LegMap};
 use eemp_core::metrics::{
@@ -1035,7 +1035,7 @@ fn write_observation(o: &ObsParts, s: &RobotState, out: &mut [f32]) {
 /// q_ref: IK of the plan's swing references; stance legs keep their measured angles.
 fn reference_joints(
     kin: &LegKinematics,
-    plan: Option<&eemp_core::controller::Plan>,
+    plan: Option<&eemp_core::locomotion::Plan>,
     s: &RobotState,
 ) -> LegMap<Vector3<f64>> {
     LegMap::from_fn(|leg| {
@@ -1306,7 +1306,7 @@ impl<P: ParamsPolicy> EempRlController<P> {
         config.start_pose(robot, first_speed_mps)
     }
 
-    fn decide(&mut self, input: &eemp_core::control::ControlInput) {
+    fn decide(&mut self, input: &eemp_core::controller::ControlInput) {
         let s = input.state;
         let q_ref = reference_joints(&self.kin, self.eemp.plan(), s);
         let speed = input.command.vx_mps.hypot(input.command.vy_mps);
@@ -1342,8 +1342,8 @@ impl<P: ParamsPolicy> EempRlController<P> {
 impl<P: ParamsPolicy> Controller for EempRlController<P> {
     fn control(
         &mut self,
-        input: &eemp_core::control::ControlInput,
-    ) -> eemp_core::controller::ControlOutput {
+        input: &eemp_core::controller::ControlInput,
+    ) -> eemp_core::locomotion::ControlOutput {
         let t = input.state.time_s;
         let period = self.config.decision_period_s;
         let due = t + 1e-9 >= self.next_decision_s
@@ -1370,7 +1370,7 @@ impl<P: ParamsPolicy> Controller for EempRlController<P> {
         self.last_tau = out.torques;
         out
     }
-    fn plan(&self) -> Option<&eemp_core::controller::Plan> {
+    fn plan(&self) -> Option<&eemp_core::locomotion::Plan> {
         self.eemp.plan()
     }
     fn steps(&self) -> Option<LegMap<usize>> {

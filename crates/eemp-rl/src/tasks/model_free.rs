@@ -776,7 +776,7 @@ pub(crate) fn run_pd_period(
 /// (fell, unstable) — an instability counts as a fall too.
 pub(crate) fn run_period(
     loop_: &mut ClosedLoop,
-    controller: &mut dyn eemp_core::control::Controller,
+    controller: &mut dyn eemp_core::controller::Controller,
     command: VelocityCommand,
     substeps: usize,
     observer: &mut dyn FnMut(&eemp_sim::closed_loop::StepRecord),

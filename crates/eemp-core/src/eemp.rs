@@ -1,9 +1,9 @@
 //! EEMP as a [`Controller`]: Algorithm 1 (planner) → MPC + swing law ([`LocomotionController`]),
 //! and the standing variant (body-motion profile → MPC on four feet).
 
-use crate::control::{ControlInput, Controller};
-use crate::controller::{ControlOutput, LocomotionController, Plan};
+use crate::controller::{ControlInput, Controller};
 use crate::leg::LegMap;
+use crate::locomotion::{ControlOutput, LocomotionController, Plan};
 use crate::planner::params_table::ParamsTable;
 use crate::planner::{EemPlanner, PlannerParams};
 use crate::stand_profile::StandPlanner;
