@@ -102,6 +102,12 @@ pub const KEYS: &[KeyDoc] = &[
         "Step as soon as a horizontal speed is commanded, not when a foot leaves its ellipse",
     ),
     k(
+        "planner.position_error_max_m",
+        "m",
+        "[0, 0.5]",
+        "Body reference at the integrated command, kept this close to the trunk; 0: off",
+    ),
+    k(
         "planner.ellipse_friction_factor",
         "1",
         "[0, 3] or unset",

@@ -117,7 +117,17 @@ pub struct PlannerConfig {
     /// 0.5 m/s velocity error. `None` (the default): the gait's
     /// ([`default_touchdown_friction_factor`]; [`PlannerConfig::touchdown_friction_factor_in_force`]).
     pub touchdown_friction_factor: Option<f64>,
+    /// Hold the commanded displacement, not only the speed: the body reference's horizontal
+    /// position is the commanded velocity integrated over time, kept within this distance of
+    /// the trunk, m. A trunk that lags the command (EEMP steps only when a foot leaves its
+    /// ellipse, and the MPC's velocity error alone leaves a standing lag) is pulled towards where
+    /// the command would have it, at most this far, so a push or a fall-back never winds it up.
+    /// 0 (the default, the paper's): the reference starts at the trunk at every step.
+    pub position_error_max_m: f64,
 }
+
+/// Allowed [`PlannerConfig::position_error_max_m`], m.
+pub const POSITION_ERROR_MAX_RANGE: [f64; 2] = [0.0, 0.5];
 
 impl Default for PlannerConfig {
     fn default() -> Self {
@@ -132,6 +142,7 @@ impl Default for PlannerConfig {
             first_step_on_command: false,
             ellipse_friction_factor: None,
             touchdown_friction_factor: None,
+            position_error_max_m: 0.0,
         }
     }
 }
@@ -141,6 +152,13 @@ impl PlannerConfig {
         let [lo, hi] = PROGRESS_FACTOR_RANGE;
         check_range("planner.progress_factor", self.progress_factor, lo, hi)?;
         check_range("planner.max_accel_mps2", self.max_accel_mps2, 0.05, 20.0)?;
+        let [lo, hi] = POSITION_ERROR_MAX_RANGE;
+        check_range(
+            "planner.position_error_max_m",
+            self.position_error_max_m,
+            lo,
+            hi,
+        )?;
         if let Some(f) = self.ellipse_friction_factor {
             let [lo, hi] = ELLIPSE_FRICTION_FACTOR_RANGE;
             check_range("planner.ellipse_friction_factor", f, lo, hi)?;
@@ -252,6 +270,9 @@ pub struct EemPlanner {
     steps: LegMap<usize>,
     /// Slew-limited velocity reference (heading frame), m/s.
     v_ref: Vector2<f64>,
+    /// The commanded velocity integrated into a position (world x, y), m, with
+    /// [`PlannerConfig::position_error_max_m`].
+    p_ref: Option<Vector2<f64>>,
     last_t: Option<f64>,
 }
 
@@ -274,6 +295,7 @@ impl EemPlanner {
             previous_legs: Vec::new(),
             steps: LegMap::splat(0),
             v_ref: Vector2::zeros(),
+            p_ref: None,
             last_t: None,
         })
     }
@@ -344,6 +366,21 @@ impl EemPlanner {
         } else {
             dv
         };
+        // Where the reference starts: the trunk, or the integrated command near it.
+        let origin = match self.config.position_error_max_m {
+            max if max > 0.0 => {
+                let here = body.p_world.xy();
+                let v_world = heading * Vector3::new(self.v_ref.x, self.v_ref.y, 0.0);
+                let mut p = self.p_ref.unwrap_or(here) + v_world.xy() * dt_ctrl;
+                let e = p - here;
+                if e.norm() > max {
+                    p = here + e * (max / e.norm());
+                }
+                self.p_ref = Some(p);
+                Vector3::new(p.x, p.y, body.p_world.z)
+            }
+            _ => body.p_world,
+        };
 
         // "Swing phase complete": the legs land and rejoin the stance set.
         for leg in Leg::ALL {
@@ -385,13 +422,12 @@ impl EemPlanner {
         }
         let stance = self.swings.map(|_, s| s.is_none());
 
-        // Body reference: Euler integration of the commanded velocity from the current state.
+        // Body reference: Euler integration of the commanded velocity from `origin`.
         let reference_at = |tau: f64| -> BodyReference {
             let yaw_tau = yaw + command.yaw_rate_rps * tau;
             let v_world = Rotation3::from_axis_angle(&Vector3::z_axis(), yaw_tau)
                 * Vector3::new(self.v_ref.x, self.v_ref.y, 0.0);
-            let mut p =
-                body.p_world + heading * Vector3::new(self.v_ref.x, self.v_ref.y, 0.0) * tau;
+            let mut p = origin + heading * Vector3::new(self.v_ref.x, self.v_ref.y, 0.0) * tau;
             p.z = ground_z + params.body_height_m;
             BodyReference {
                 rpy: Vector3::new(0.0, 0.0, yaw_tau),

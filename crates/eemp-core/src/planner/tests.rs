@@ -456,3 +456,43 @@ fn the_walks_ellipses_stay_as_the_table_has_them_at_a_low_friction() {
     assert!((t.ellipse_rx_m - 0.0465).abs() < 1e-12, "{t:?}");
     assert!((t.ellipse_ry_m - 0.0465).abs() < 1e-12, "{t:?}");
 }
+
+#[test]
+fn a_lagging_trunk_is_pulled_towards_the_integrated_command_up_to_the_bound() {
+    let kin = LegKinematics::new(&RobotConfig::a1());
+    let (state, feet) = standing(&kin, 0.03);
+    let cmd = VelocityCommand {
+        vx_mps: 0.1,
+        ..Default::default()
+    };
+    let params = PlannerParams::default();
+    let held = |max: f64, t: f64| {
+        let mut p = planner_with(PlannerConfig {
+            gait: Gait::Trot,
+            position_error_max_m: max,
+            // The reference at the command from the first step.
+            max_accel_mps2: 20.0,
+            ..Default::default()
+        });
+        p.plan(0.0, &state, &feet, &cmd, &params, NOMINAL_MU);
+        let mut plan = p.plan(0.01, &state, &feet, &cmd, &params, NOMINAL_MU);
+        // The trunk stays where it is while the command runs on.
+        for k in 2..=(t / 0.01).round() as usize {
+            plan = p.plan(k as f64 * 0.01, &state, &feet, &cmd, &params, NOMINAL_MU);
+        }
+        plan.body_now.p_world.x - state.body.p_world.x
+    };
+    // Off: the reference starts at the trunk.
+    assert_eq!(held(0.0, 0.5), 0.0);
+    // On: 0.1 m/s for 0.1 s ahead (0.01 m, under the bound), then held at the bound.
+    assert!((held(0.05, 0.1) - 0.01).abs() < 1e-9, "{}", held(0.05, 0.1));
+    assert!((held(0.05, 2.0) - 0.05).abs() < 1e-12);
+    assert!(PlannerConfig {
+        position_error_max_m: 0.6,
+        ..Default::default()
+    }
+    .validate()
+    .unwrap_err()
+    .to_string()
+    .contains("planner.position_error_max_m"));
+}
