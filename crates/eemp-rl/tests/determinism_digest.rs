@@ -29,7 +29,7 @@ impl Fnv {
 
 /// (robot, gait, estimator, pinned digest). The Go1's and Go2's free-gait tables give the free
 /// gait the trot's parameters, and with them it pairs the diagonal legs and walks the trot's bytes.
-const PINS: [(&str, &str, &str, u64); 9] = [
+const PINS: [(&str, &str, &str, u64); 11] = [
     ("a1", "trot", "ground-truth", 0x4f74e08fbda9e0ce),
     ("a1", "walk", "ground-truth", 0x1f97c71e7e9cc472),
     ("a1", "free", "ground-truth", 0xe80118ea7dc1e400),
@@ -39,6 +39,8 @@ const PINS: [(&str, &str, &str, u64); 9] = [
     ("go1", "walk", "kf", 0x722ae2074e1c2474),
     ("go2", "trot", "kf", 0xb245dc670c437ffa),
     ("go2", "walk", "kf", 0x0a0d2a7c6343b613),
+    ("go1", "free", "kf", 0xa15e2e79e1e9f475),
+    ("go2", "free", "kf", 0xb245dc670c437ffa),
 ];
 
 fn digest(robot: &str, gait: &str, estimator: &str) -> (u64, bool) {
