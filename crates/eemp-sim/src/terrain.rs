@@ -1,6 +1,8 @@
 //! Terrain beyond the flat floor, generated into the MJCF from a description (seeded, so the
-//! same file gives the same ground): a rough height field, a ramp up and down, a step, and
-//! patches of another friction. [`Terrain::height_at`] says where the ground is.
+//! same file gives the same ground): a rough height field, a ramp up and down, a step up or
+//! down, a staircase, and patches of another friction. [`Terrain::height_at`] says where the
+//! ground is. Ground that goes down from the start (a step down, stairs down) is built as a
+//! platform the robot starts on, so the floor stays MuJoCo's plane at z = 0.
 
 use crate::mjcf::SceneExtras;
 use eemp_core::config_error::{check_range, ConfigError};
@@ -51,13 +53,28 @@ pub struct Ramp {
     pub plateau_m: f64,
 }
 
-/// The ground rises by `height_m` from `at_x_m` on (for 10 m).
+/// The ground rises by `height_m` from `at_x_m` on (for 10 m); a negative height is a step
+/// down.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Step {
     pub at_x_m: f64,
     pub height_m: f64,
 }
+
+/// A staircase from `at_x_m`: `count` steps of `rise_m` (negative: down) every `run_m`, then a
+/// landing (10 m).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Stairs {
+    pub at_x_m: f64,
+    pub rise_m: f64,
+    pub run_m: f64,
+    pub count: usize,
+}
+
+/// How far the step and the stairs reach beyond their last edge, m.
+const LANDING_M: f64 = 10.0;
 
 /// A patch of other friction on the floor between `x0_m` and `x1_m`, `width_m` wide.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -85,6 +102,8 @@ pub struct Terrain {
     pub ramp: Option<Ramp>,
     #[serde(default)]
     pub step: Option<Step>,
+    #[serde(default)]
+    pub stairs: Option<Stairs>,
     #[serde(default)]
     pub friction_patch: Vec<FrictionPatch>,
 }
@@ -116,7 +135,45 @@ impl Terrain {
         }
         if let Some(s) = &self.step {
             check_range("terrain.step.at_x_m", s.at_x_m, 0.3, 100.0)?;
-            check_range("terrain.step.height_m", s.height_m, 0.005, 0.2)?;
+            check_range("terrain.step.height_m", s.height_m, -0.2, 0.2)?;
+            if s.height_m.abs() < 0.005 {
+                return Err(ConfigError::Invalid {
+                    name: "terrain.step.height_m".into(),
+                    message: format!(
+                        "{} is no step: allowed [-0.2, -0.005] (down) or [0.005, 0.2] (up)",
+                        s.height_m
+                    ),
+                });
+            }
+        }
+        if let Some(s) = &self.stairs {
+            check_range("terrain.stairs.at_x_m", s.at_x_m, 0.3, 100.0)?;
+            check_range("terrain.stairs.rise_m", s.rise_m, -0.25, 0.25)?;
+            if s.rise_m.abs() < 0.005 {
+                return Err(ConfigError::Invalid {
+                    name: "terrain.stairs.rise_m".into(),
+                    message: format!(
+                        "{} is no rise: allowed [-0.25, -0.005] (down) or [0.005, 0.25] (up)",
+                        s.rise_m
+                    ),
+                });
+            }
+            check_range("terrain.stairs.run_m", s.run_m, 0.1, 5.0)?;
+            check_range("terrain.stairs.count", s.count as f64, 1.0, 50.0)?;
+        }
+        if self.step.is_some() && self.stairs.is_some() {
+            return Err(ConfigError::Invalid {
+                name: "terrain.stairs".into(),
+                message: "a staircase cannot be combined with a step (give one)".into(),
+            });
+        }
+        if self.ramp.is_some() && self.start_lift_m() > 0.0 {
+            return Err(ConfigError::Invalid {
+                name: "terrain.ramp".into(),
+                message: "a ramp cannot be combined with ground that goes down from the start \
+                          (a step or stairs down)"
+                    .into(),
+            });
         }
         for (i, p) in self.friction_patch.iter().enumerate() {
             check_range(
@@ -159,19 +216,18 @@ impl Terrain {
                 }
             }
         }
-        if self.rough.is_some() && (self.ramp.is_some() || self.step.is_some()) {
+        let shaped = self.ramp.is_some() || self.step.is_some() || self.stairs.is_some();
+        if self.rough.is_some() && shaped {
             return Err(ConfigError::Invalid {
                 name: "terrain".into(),
-                message: "a rough field cannot be combined with a ramp or a step".into(),
+                message: "a rough field cannot be combined with a ramp, a step or stairs".into(),
             });
         }
-        if !self.friction_patch.is_empty()
-            && (self.rough.is_some() || self.ramp.is_some() || self.step.is_some())
-        {
+        if !self.friction_patch.is_empty() && (self.rough.is_some() || shaped) {
             return Err(ConfigError::Invalid {
                 name: "terrain.friction_patch".into(),
                 message: "patches lie on the flat floor: they cannot be combined with rough \
-                          ground, a ramp or a step"
+                          ground, a ramp, a step or stairs"
                     .into(),
             });
         }
@@ -212,6 +268,52 @@ impl Terrain {
             }
         }
         (n, h)
+    }
+
+    /// The step's or the stairs' ground as flat pieces (x from, length, height relative to the
+    /// start's ground), in order along x; empty without either.
+    fn levels(&self) -> Vec<(f64, f64, f64)> {
+        if let Some(s) = &self.step {
+            return vec![(s.at_x_m, LANDING_M, s.height_m)];
+        }
+        if let Some(s) = &self.stairs {
+            return (0..s.count)
+                .map(|i| {
+                    let len = if i + 1 == s.count { LANDING_M } else { s.run_m };
+                    (
+                        s.at_x_m + i as f64 * s.run_m,
+                        len,
+                        (i + 1) as f64 * s.rise_m,
+                    )
+                })
+                .collect();
+        }
+        Vec::new()
+    }
+
+    /// How high the start's ground stands above the floor plane, m: the platform under the
+    /// start where the ground goes down from it (0 otherwise).
+    pub fn start_lift_m(&self) -> f64 {
+        -self.levels().iter().map(|l| l.2).fold(0.0_f64, f64::min)
+    }
+
+    /// The flat pieces above the floor plane as they are built: (x from, length, height), the
+    /// start's platform first.
+    fn built_levels(&self) -> Vec<(f64, f64, f64)> {
+        let lift = self.start_lift_m();
+        let levels = self.levels();
+        let mut out = Vec::new();
+        if lift > 0.0 {
+            let first = levels.first().map_or(0.0, |l| l.0);
+            out.push((first - LANDING_M, LANDING_M, lift));
+        }
+        out.extend(
+            levels
+                .into_iter()
+                .map(|(a, b, z)| (a, b, z + lift))
+                .filter(|l| l.2 > 1e-9),
+        );
+        out
     }
 
     /// Ground height at (x, y), m (what a resting foot or sphere sits on).
@@ -256,9 +358,9 @@ impl Terrain {
                 (r.rise_m - (d - run - r.plateau_m) * r.grade).max(0.0)
             });
         }
-        if let Some(s) = &self.step {
-            if x >= s.at_x_m && x <= s.at_x_m + 10.0 {
-                z = z.max(s.height_m);
+        for (x0, len, h) in self.built_levels() {
+            if x >= x0 && x <= x0 + len {
+                z = z.max(h);
             }
         }
         for p in &self.friction_patch {
@@ -356,14 +458,20 @@ impl Terrain {
                 );
             }
         }
-        if let Some(s) = &self.step {
+        for (i, (x0, len, h)) in self.built_levels().into_iter().enumerate() {
+            // The step up keeps its name (one piece); the others are numbered along x.
+            let name = match (&self.step, i) {
+                (Some(s), 0) if s.height_m > 0.0 => "terrain_step".to_string(),
+                _ => format!("terrain_level_{i}"),
+            };
             x.world_geoms_xml += &geom(
-                "terrain_step",
+                &name,
                 &format!(
-                    r#"type="box" size="5 4 {}" pos="{} 0 {}""#,
-                    s.height_m / 2.0,
-                    s.at_x_m + 5.0,
-                    s.height_m / 2.0
+                    r#"type="box" size="{} 4 {}" pos="{} 0 {}""#,
+                    len / 2.0,
+                    h / 2.0,
+                    x0 + len / 2.0,
+                    h / 2.0
                 ),
                 floor_friction,
                 1,

@@ -535,7 +535,12 @@ pub fn run_walk_commanded(
     spec.validate()?;
     let (robot, scene) = spec.simulated_world(robot);
     let mut sim = Simulation::new(&robot, &scene)?;
-    reset_to_start(&mut sim, start, spec.seed);
+    // On the platform of ground that goes down from the start (a step or stairs down).
+    let start = StartPose {
+        trunk_height_m: start.trunk_height_m + spec.terrain.start_lift_m(),
+        ..start.clone()
+    };
+    reset_to_start(&mut sim, &start, spec.seed);
     let kin = LegKinematics::new(&robot);
     let mut metrics = MetricsAccumulator::new(robot.motor_model());
     let mut gait = GaitMeter::default();

@@ -4,7 +4,7 @@
 
 use eemp_core::leg::LegMap;
 use eemp_core::robot::RobotConfig;
-use eemp_sim::terrain::{FrictionPatch, Ramp, Rough, Step, Terrain};
+use eemp_sim::terrain::{FrictionPatch, Ramp, Rough, Stairs, Step, Terrain};
 use eemp_sim::Simulation;
 use mujoco_rs::prelude::*;
 use nalgebra::Vector3;
@@ -45,8 +45,96 @@ fn terrains() -> Vec<(&'static str, Terrain)> {
                 ..Default::default()
             },
         ),
+        (
+            "step down",
+            Terrain {
+                step: Some(Step {
+                    at_x_m: 1.0,
+                    height_m: -0.08,
+                }),
+                ..Default::default()
+            },
+        ),
+        ("stairs up", stairs(0.05)),
+        ("stairs down", stairs(-0.05)),
         ("patch", patch()),
     ]
+}
+
+fn stairs(rise_m: f64) -> Terrain {
+    Terrain {
+        stairs: Some(Stairs {
+            at_x_m: 0.5,
+            rise_m,
+            run_m: 0.3,
+            count: 4,
+        }),
+        ..Default::default()
+    }
+}
+
+#[test]
+fn ground_that_goes_down_starts_on_a_platform_and_bad_steps_are_refused_by_name() {
+    // Four 5 cm steps down: the start stands 20 cm up, each step 5 cm lower, the landing on the
+    // floor plane.
+    let down = stairs(-0.05);
+    assert!((down.start_lift_m() - 0.2).abs() < 1e-12);
+    for (x, z) in [
+        (0.0, 0.2),
+        (0.6, 0.15),
+        (0.9, 0.1),
+        (1.2, 0.05),
+        (1.6, 0.0),
+        (5.0, 0.0),
+    ] {
+        assert!(
+            (down.height_at(x, 0.0) - z).abs() < 1e-12,
+            "{x}: {}",
+            down.height_at(x, 0.0)
+        );
+    }
+    let up = stairs(0.05);
+    assert_eq!(up.start_lift_m(), 0.0);
+    assert!((up.height_at(1.6, 0.0) - 0.2).abs() < 1e-12);
+    for (t, says) in [
+        (
+            Terrain {
+                step: Some(Step {
+                    at_x_m: 1.0,
+                    height_m: 0.001,
+                }),
+                ..Default::default()
+            },
+            "terrain.step.height_m",
+        ),
+        (
+            Terrain {
+                stairs: Some(Stairs {
+                    at_x_m: 1.0,
+                    rise_m: 0.3,
+                    run_m: 0.3,
+                    count: 4,
+                }),
+                ..Default::default()
+            },
+            "terrain.stairs.rise_m",
+        ),
+        (
+            Terrain {
+                ramp: Some(Ramp {
+                    start_x_m: 1.0,
+                    grade: 0.1,
+                    rise_m: 0.2,
+                    plateau_m: 1.0,
+                }),
+                ..stairs(-0.05)
+            },
+            "terrain.ramp",
+        ),
+    ] {
+        let e = t.validate().unwrap_err().to_string();
+        assert!(e.contains(says), "{e}");
+    }
 }
 
 fn patch() -> Terrain {
