@@ -1,10 +1,10 @@
 //! The floor's friction from slips: a stance foot that slides says the floor gives less than the
 //! MPC's friction pyramid assumes, so the MPC is told a lower friction coefficient; a foot that
 //! holds a steeper force than the coefficient raises it again. On by default for every gait
-//! (issue 22; the walk gates its slides and runs below 0.6 m/s: see
-//! [`SlipConfig::default_for`]; `controller.slip.adapt_friction`, `eemp walk --no-adapt-friction`
-//! turns it off, `--adapt-friction` on). How each rule was traced and chosen, and the variants
-//! not kept, are in `docs/notebook/2026-12-04-slippery-ground.md`.
+//! (the walk gates its slides and runs below 0.6 m/s: `settings/walk.toml`,
+//! [`SlipConfig::default_for`]); `eemp walk --set slip.adapt_friction=false` turns it off. How
+//! each rule was traced and chosen, and the variants not kept, are in
+//! `docs/notebook/2026-12-04-slippery-ground.md`.
 //!
 //! Why: the MPC's pyramid (|f_x|, |f_y| ≤ μ f_z with μ = 0.6 by default) lets its corners reach
 //! √2·μ = 0.85, and the forces the legs really put on the ground also carry the leg's own

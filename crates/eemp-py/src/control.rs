@@ -329,7 +329,14 @@ pub fn walk_json(
             seed,
             ..Default::default()
         },
-        ..eemp_walk(gait, params, params_table, table_ii, robot, settings)
+        ..eemp_walk(
+            gait,
+            params,
+            params_table,
+            table_ii,
+            robot,
+            settings.clone(),
+        )
     }
     .build()
     .map_err(value_error)?;
@@ -344,6 +351,8 @@ pub fn walk_json(
         "speed_mps": speed,
         "estimator": estimator,
         "params_table": params_table,
+        // The controller settings given (`eemp walk --set`), applied over the defaults.
+        "settings": settings,
         "duration_s": st.sim_time_s,
         "fell": st.fell,
         "fell_at_s": st.fell_at_s,
