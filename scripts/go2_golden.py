@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Golden values for the Go2 codec tests (crates/eemp-core/src/hardware/go2_idl.rs).
+"""Golden values for the Go2 codec tests (crates/eemp-hw/src/wire/go2_idl.rs).
 
 Standard library only, written from the IDL field lists and the CRC description in
 ../shared/reference/go2-dds-notes.md (§1.4, §1.5), not from the Rust code:

@@ -119,7 +119,7 @@ pub fn show(args: &ConfigShowArgs) -> Result<String, String> {
             if dotted == "planner.gait" {
                 continue; // what the run asks for (--gait), not a setting
             }
-            let in_gait_file = value_at(gait_tree, t, &key).is_some();
+            let in_gait_file = value_at(gait_tree, t, &key).as_ref() == Some(&v);
             let from_robot = match dotted.as_str() {
                 "slip.initial_friction" => control.slip_initial_friction.is_some(),
                 "mpc.weight_heat" => control.mpc_weight_heat.is_some(),

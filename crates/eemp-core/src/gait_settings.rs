@@ -106,6 +106,27 @@ mod tests {
     }
 
     #[test]
+    fn a_gait_file_holds_only_keys_the_code_reads_from_it() {
+        // `[slip]` is merged whole (`SlipConfig::default_for`); of `[planner]` the two friction
+        // factors are read (`PlannerConfig::*_in_force`). A key anywhere else would be ignored.
+        for (gait, path, _) in GAIT_FILES {
+            let (_, t) = gait_file(gait);
+            for (table, v) in t {
+                let keys: Vec<&String> = v.as_table().expect("tables").keys().collect();
+                let read = match table.as_str() {
+                    "slip" => true,
+                    "planner" => keys.iter().all(|k| {
+                        ["ellipse_friction_factor", "touchdown_friction_factor"]
+                            .contains(&k.as_str())
+                    }),
+                    _ => false,
+                };
+                assert!(read, "{path}: [{table}] {keys:?} is not read by the code");
+            }
+        }
+    }
+
+    #[test]
     fn a_gait_table_overrides_only_its_keys() {
         let mut a: toml::Table = toml::from_str("[x]\na = 1\nb = 2\n[y]\nc = 3").unwrap();
         let b: toml::Table = toml::from_str("[x]\nb = 5").unwrap();

@@ -50,7 +50,7 @@ impl ControllerConfig {
         self.mpc.validate()?;
         self.swing.validate()?;
         self.slip.validate()?;
-        check_range("controller.mpc_period_s", self.mpc_period_s, 0.001, 0.1)
+        check_range("schedule.mpc_period_s", self.mpc_period_s, 0.001, 0.1)
     }
 }
 

@@ -515,11 +515,10 @@ mod tests {
                 let Some((lo, hi)) = closed_range(d.range) else {
                     continue;
                 };
-                // The error of `--set key=...` names the value it refuses first (the schedule's
-                // as the controller's).
+                // The error of `--set key=...` names the value it refuses first, by its key.
                 let names_own_key = |e: &str, set: &str| {
                     let why = e.strip_prefix(&format!("--set {set}: ")).unwrap_or(e);
-                    let own = d.key.replacen("schedule.", "controller.", 1);
+                    let own = d.key;
                     why.starts_with(&format!("{own} "))
                         || why.starts_with(&format!("{own}["))
                         || why.starts_with(&format!("{own}:"))

@@ -476,10 +476,49 @@ fn apply_sets(spec: &mut WalkSpec, sets: &[String], is_eemp: bool) -> Result<(),
         ));
     }
     let settings = settings_of(spec).with_sets(sets)?;
+    refuse_ignored(&settings, sets)?;
     spec.planner = settings.planner;
     spec.controller = settings.controller;
     if let (Some(kf), Some(mine)) = (settings.filter, spec.state_source.kf_config_mut()) {
         *mine = kf;
+    }
+    Ok(())
+}
+
+/// Refuses a `set` the run would ignore: a setting of another gait's rule, or of slip handling
+/// (or its speed cap, or the walk's support check) where it is off.
+fn refuse_ignored(settings: &ControllerSettings, sets: &[String]) -> Result<(), String> {
+    let gait = settings.planner.gait;
+    let slip = &settings.controller.slip;
+    let support = &settings.planner.walk_support;
+    for s in sets {
+        let key = s.split_once('=').map_or(s.as_str(), |(k, _)| k).trim();
+        let why = if key.starts_with("planner.walk_support.") && gait != Gait::Walk {
+            Some(format!(
+                "it is the walk's rule, and this run's gait is {gait}"
+            ))
+        } else if key.starts_with("planner.free_pairing.") && gait != Gait::Free {
+            Some(format!(
+                "it is the free gait's rule, and this run's gait is {gait}"
+            ))
+        } else if key.starts_with("planner.walk_support.")
+            && key != "planner.walk_support.check"
+            && !support.check
+        {
+            Some("the walk's support check is off (planner.walk_support.check = false)".into())
+        } else if key.starts_with("slip.") && key != "slip.adapt_friction" && !slip.adapt_friction {
+            Some("slip handling is off (slip.adapt_friction = false)".into())
+        } else if key == "slip.slow_speed_mps" && slip.slow_below_friction <= 0.0 {
+            Some(format!(
+                "the speed cap on slippery floors is off (slip.slow_below_friction = 0, the \
+                 {gait}'s default or as set): set slip.slow_below_friction too"
+            ))
+        } else {
+            None
+        };
+        if let Some(why) = why {
+            return Err(format!("--set {s}: the run would ignore it: {why}"));
+        }
     }
     Ok(())
 }
@@ -687,6 +726,42 @@ mod tests {
             "planner.walk_support.margin_m",
         );
         bad(sets("trot", &["slip.slow_speed=0.2"]), "slow_speed");
+        // Settings the run would ignore are refused, naming why.
+        bad(
+            sets("trot", &["planner.walk_support.margin_m=-0.1"]),
+            "the walk's rule, and this run's gait is trot",
+        );
+        bad(
+            sets("walk", &["planner.free_pairing.pair_tolerance=0.2"]),
+            "the free gait's rule",
+        );
+        bad(
+            sets(
+                "walk",
+                &["slip.adapt_friction=false", "slip.hold_raise_fraction=0.8"],
+            ),
+            "slip handling is off",
+        );
+        bad(
+            sets("trot", &["slip.slow_speed_mps=0.2"]),
+            "the speed cap on slippery floors is off",
+        );
+        bad(
+            sets(
+                "walk",
+                &[
+                    "planner.walk_support.check=false",
+                    "planner.walk_support.margin_m=-0.1",
+                ],
+            ),
+            "support check is off",
+        );
+        assert!(sets(
+            "trot",
+            &["slip.slow_below_friction=0.2", "slip.slow_speed_mps=0.2"]
+        )
+        .build()
+        .is_ok());
         let built = sets("walk", &["slip.slow_speed_mps=0.2", "mpc.horizon=12"])
             .build()
             .unwrap();

@@ -60,10 +60,16 @@ impl Default for FallLimits {
 }
 
 impl FallLimits {
+    /// Whether `state` counts as fallen on the flat floor.
     pub fn fallen(&self, state: &RobotState) -> bool {
+        self.fallen_above(state, 0.0)
+    }
+
+    /// Whether `state` counts as fallen with the ground `ground_z_m` under the trunk.
+    pub fn fallen_above(&self, state: &RobotState, ground_z_m: f64) -> bool {
         let rpy = state.body.rpy();
         !state.body.is_finite()
-            || state.body.p_world.z < self.min_height_m
+            || state.body.p_world.z - ground_z_m < self.min_height_m
             || rpy.x.abs() > self.max_tilt_rad
             || rpy.y.abs() > self.max_tilt_rad
     }
@@ -242,6 +248,8 @@ pub struct ClosedLoop {
     /// Force pulses under way: the force on the trunk and the physics steps it has left.
     pulses: Vec<(Vector3<f64>, usize)>,
     limits: FallLimits,
+    /// The ground the fall height is measured above (None: the floor plane).
+    ground: Option<crate::terrain::Ground>,
     stats: LoopStats,
     t_start: f64,
     wall_start: Instant,
@@ -285,6 +293,7 @@ impl ClosedLoop {
             pending: pushes.to_vec(),
             pulses: Vec::new(),
             limits,
+            ground: None,
             stats: LoopStats::default(),
             t_start,
             wall_start: Instant::now(),
@@ -328,6 +337,12 @@ impl ClosedLoop {
         }
         self.last_estimate = None;
         Ok(())
+    }
+
+    /// Measures the fall height above `terrain`'s ground under the trunk (a collapse on a
+    /// platform or a stair is a fall).
+    pub fn set_ground(&mut self, terrain: &crate::terrain::Terrain) {
+        self.ground = Some(crate::terrain::Ground::new(terrain));
     }
 
     /// What the robot knows of itself now: the estimate its controller saw at the last step,
@@ -549,7 +564,10 @@ impl ClosedLoop {
         stats.steps += 1;
         stats.sim_time_s = stats.steps as f64 * self.sim.timestep_s();
         stats.wall_time_s = (t5 - self.wall_start).as_secs_f64();
-        let fell = self.limits.fallen(&truth);
+        let ground_z = self.ground.as_ref().map_or(0.0, |t| {
+            t.height_at(truth.body.p_world.x, truth.body.p_world.y)
+        });
+        let fell = self.limits.fallen_above(&truth, ground_z);
         if fell && !stats.fell {
             stats.fell = true;
             stats.fell_at_s = Some(truth.time_s - t_start);

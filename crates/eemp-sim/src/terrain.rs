@@ -304,8 +304,9 @@ impl Terrain {
         let levels = self.levels();
         let mut out = Vec::new();
         if lift > 0.0 {
+            // From behind the start to the first edge, wherever that is.
             let first = levels.first().map_or(0.0, |l| l.0);
-            out.push((first - LANDING_M, LANDING_M, lift));
+            out.push((-LANDING_M, first + LANDING_M, lift));
         }
         out.extend(
             levels
@@ -316,11 +317,17 @@ impl Terrain {
         out
     }
 
-    /// Ground height at (x, y), m (what a resting foot or sphere sits on).
+    /// Ground height at (x, y), m (what a resting foot or sphere sits on). For many queries,
+    /// [`Ground`] computes the rough field once.
     pub fn height_at(&self, x: f64, y: f64) -> f64 {
+        let grid = self.rough.as_ref().map(Self::rough_grid);
+        self.height_with(grid.as_ref(), x, y)
+    }
+
+    fn height_with(&self, rough: Option<&(usize, Vec<f64>)>, x: f64, y: f64) -> f64 {
         let mut z: f64 = 0.0;
-        if let Some(r) = &self.rough {
-            let (n, h) = Self::rough_grid(r);
+        if let (Some(r), Some((n, h))) = (&self.rough, rough) {
+            let n = *n;
             let half = r.size_m / 2.0;
             if x.abs() <= half && y.abs() <= half {
                 let cell = grid(r.size_m).1;
@@ -491,5 +498,27 @@ impl Terrain {
             );
         }
         x
+    }
+}
+
+/// A terrain ready for many height queries (the closed loop's fall check at every step): the
+/// rough field's grid computed once.
+#[derive(Clone, Debug)]
+pub struct Ground {
+    terrain: Terrain,
+    grid: Option<(usize, Vec<f64>)>,
+}
+
+impl Ground {
+    pub fn new(terrain: &Terrain) -> Self {
+        Ground {
+            grid: terrain.rough.as_ref().map(Terrain::rough_grid),
+            terrain: terrain.clone(),
+        }
+    }
+
+    /// [`Terrain::height_at`].
+    pub fn height_at(&self, x: f64, y: f64) -> f64 {
+        self.terrain.height_with(self.grid.as_ref(), x, y)
     }
 }

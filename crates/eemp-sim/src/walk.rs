@@ -548,12 +548,13 @@ pub fn run_walk_commanded(
     let mass = robot.total_mass_kg();
     let mut touchdowns = LegMap::splat(0usize);
     let mut was_down: Option<LegMap<bool>> = None;
-    let lp = ClosedLoop::with_state_source(
+    let mut lp = ClosedLoop::with_state_source(
         sim,
         &spec.pushes,
         FallLimits::default(),
         &spec.state_source,
     )?;
+    lp.set_ground(&spec.terrain);
     let lp = run_closed_loop(lp, controller, spec.duration_s, command_at, |record| {
         let t = record.state.time_s;
         let stance = record.stance();
