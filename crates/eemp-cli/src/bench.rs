@@ -229,6 +229,7 @@ fn time_case(
         horizon: options.horizon,
         solver,
         drop_swing_forces,
+        f_max_n: Some(robot.mpc_f_max_n()),
         ..MpcConfig::default()
     };
     let dt_s = config.dt_s;

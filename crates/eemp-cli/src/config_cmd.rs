@@ -123,6 +123,7 @@ pub fn show(args: &ConfigShowArgs) -> Result<String, String> {
             let from_robot = match dotted.as_str() {
                 "slip.initial_friction" => control.slip_initial_friction.is_some(),
                 "mpc.weight_heat" => control.mpc_weight_heat.is_some(),
+                "mpc.f_max_n" => control.mpc_f_max_n.is_some(),
                 _ => false,
             };
             let from_table = dotted == "planner.progress_factor"

@@ -227,6 +227,27 @@ fn wrap_angle(a: f64) -> f64 {
 // The composite body needs the legs' link frames: it lives with the kinematics, above the robot
 // description it reads.
 impl RobotConfig {
+    /// The vertical force one leg holds at the standing pose with every joint within its torque
+    /// limit, N: min over the joints of τ_max / |(Jᵀ ẑ)_j| (the front right leg; the legs are
+    /// mirror images).
+    pub fn held_foot_force_n(&self) -> f64 {
+        let kin = LegKinematics::new(self);
+        let q = Vector3::from(self.leg.standing_pose_rad);
+        let per_newton = kin.foot_jacobian_body(Leg::FrontRight, &q).transpose() * Vector3::z();
+        (0..3)
+            .filter(|&j| per_newton[j].abs() > 1e-9)
+            .map(|j| self.leg.torque_limit_nm[j] / per_newton[j].abs())
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    /// The MPC's bound on a foot's normal force for this robot, N: the file's
+    /// `control.mpc_f_max_n`, else [`RobotConfig::held_foot_force_n`].
+    pub fn mpc_f_max_n(&self) -> f64 {
+        self.control
+            .mpc_f_max_n
+            .unwrap_or_else(|| self.held_foot_force_n())
+    }
+
     /// The robot as one rigid body with every leg at joint angles `q` (e.g. the standing pose):
     /// mass, COM and inertia about the COM, in the trunk frame (parallel-axis theorem).
     pub fn composite_body(&self, q: &LegMap<Vector3<f64>>) -> crate::robot::CompositeBody {
@@ -396,5 +417,44 @@ mod tests {
         let numeric = (at(h) - at(-h)) / (2.0 * h);
         let v = k.foot_velocity_relative_world(Leg::RearLeft, &q, &qd, &r, &w);
         assert!((v - numeric).norm() < 1e-7, "{v:?} vs {numeric:?}");
+    }
+
+    #[test]
+    fn the_held_foot_force_is_the_virtual_work_bound_and_the_file_can_set_the_mpcs() {
+        // Second method: τ_j = F · ∂z_foot/∂q_j by central differences, F = 1 N.
+        let mut robot = RobotConfig::a1();
+        let kin = LegKinematics::new(&robot);
+        let q = Vector3::from(robot.leg.standing_pose_rad);
+        let h = 1e-6;
+        let by_differences = (0..3)
+            .map(|j| {
+                let mut up = q;
+                let mut down = q;
+                up[j] += h;
+                down[j] -= h;
+                let dz = (kin.foot_position_body(Leg::FrontRight, &up).z
+                    - kin.foot_position_body(Leg::FrontRight, &down).z)
+                    / (2.0 * h);
+                (j, dz)
+            })
+            .filter(|(_, dz)| dz.abs() > 1e-6)
+            .map(|(j, dz)| robot.leg.torque_limit_nm[j] / dz.abs())
+            .fold(f64::INFINITY, f64::min);
+        let held = robot.held_foot_force_n();
+        assert!(
+            (held - by_differences).abs() < 1e-4 * held,
+            "{held} vs {by_differences}"
+        );
+        // The A1 file keeps the 160 N its tables were made with; a file without it gets the
+        // held force, and a bound out of range is refused by its key.
+        assert_eq!(robot.mpc_f_max_n(), 160.0);
+        robot.control.mpc_f_max_n = None;
+        assert_eq!(robot.mpc_f_max_n(), held);
+        robot.control.mpc_f_max_n = Some(0.0);
+        assert!(robot
+            .validate()
+            .unwrap_err()
+            .to_string()
+            .contains("control.mpc_f_max_n"));
     }
 }

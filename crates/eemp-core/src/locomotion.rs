@@ -104,6 +104,9 @@ impl LocomotionController {
         if config.mpc.weight_heat.is_none() {
             config.mpc.weight_heat = Some(robot.control.mpc_weight_heat.unwrap_or(0.0));
         }
+        if config.mpc.f_max_n.is_none() {
+            config.mpc.f_max_n = Some(robot.mpc_f_max_n());
+        }
         config.validate()?;
         let weight_heat = config.mpc.weight_heat.unwrap_or(0.0);
         let heat_coefficients = match (weight_heat > 0.0, robot.motor_model()) {

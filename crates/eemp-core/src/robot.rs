@@ -47,6 +47,11 @@ pub struct ControlDefaults {
     /// one: the battery-aware cost for a robot whose `[motor]` model it was tuned with.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mpc_weight_heat: Option<f64>,
+    /// The MPC's bound on a foot's normal force (`mpc.f_max_n`), N, when a run does not give
+    /// one; without it, the vertical force a leg holds at the standing pose within its torque
+    /// limits ([`RobotConfig::mpc_f_max_n`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mpc_f_max_n: Option<f64>,
 }
 
 impl ControlDefaults {
@@ -362,6 +367,9 @@ impl RobotConfig {
             check_range("control.slip_initial_friction", mu, lo, hi)?;
         }
         check_range("simulation.floor_friction", s.floor_friction, 0.0, 5.0)?;
+        if let Some(f) = self.control.mpc_f_max_n {
+            check_range("control.mpc_f_max_n", f, 1.0, 5000.0)?;
+        }
         if let Some(w) = self.control.mpc_weight_heat {
             check_range("control.mpc_weight_heat", w, 0.0, 1.0)?;
             if w > 0.0 && self.motor.is_none() {

@@ -142,8 +142,8 @@ pub const KEYS: &[KeyDoc] = &[
     k(
         "mpc.f_max_n",
         "N",
-        "[max(mpc.f_min_n, 1), 5000]",
-        "Upper bound on the normal force of a foot in contact",
+        "[max(mpc.f_min_n, 1), 5000] or unset",
+        "A foot's normal force bound; unset: the robot file's, else what a leg holds",
     ),
     k(
         "mpc.weight_rpy",
@@ -437,6 +437,7 @@ mod tests {
             controller: ControllerConfig {
                 mpc: MpcConfig {
                     weight_heat: Some(0.0),
+                    f_max_n: Some(160.0),
                     ..Default::default()
                 },
                 slip: SlipConfig {

@@ -430,6 +430,9 @@ impl WalkDescription {
         if spec.controller.mpc.weight_heat.is_none() {
             spec.controller.mpc.weight_heat = Some(robot.control.mpc_weight_heat.unwrap_or(0.0));
         }
+        if spec.controller.mpc.f_max_n.is_none() {
+            spec.controller.mpc.f_max_n = Some(robot.mpc_f_max_n());
+        }
         if is_eemp && spec.controller.slip.initial_friction.is_none() {
             spec.controller.slip.initial_friction = Some(
                 robot

@@ -33,8 +33,11 @@ pub struct MpcConfig {
     pub friction_coefficient: f64,
     /// Lower bound on the normal force of a foot in contact, N.
     pub f_min_n: f64,
-    /// Upper bound on the normal force of a foot in contact, N.
-    pub f_max_n: f64,
+    /// Upper bound on the normal force of a foot in contact, N. None: the robot file's
+    /// `control.mpc_f_max_n`, else the vertical force one leg holds at the standing pose within
+    /// its joints' torque limits (`RobotConfig::mpc_f_max_n`; `LocomotionController::new` fills
+    /// it).
+    pub f_max_n: Option<f64>,
     /// Weights on roll, pitch, yaw errors (1/rad²).
     pub weight_rpy: [f64; 3],
     /// Weights on position errors (1/m²).
@@ -65,7 +68,7 @@ impl Default for MpcConfig {
             dt_s: 0.025,
             friction_coefficient: 0.6,
             f_min_n: 0.0,
-            f_max_n: 160.0,
+            f_max_n: None,
             // The MIT Cheetah ratios (×10): light roll/pitch, heavy height and yaw, no roll/pitch
             // rate term. Heavier roll/pitch weights made the trot sway laterally until it fell
             // (the MPC gave up lateral velocity to hold attitude on two diagonal feet).
@@ -92,7 +95,9 @@ impl MpcConfig {
             FRICTION_RANGE[1],
         )?;
         check_range("mpc.f_min_n", self.f_min_n, 0.0, 1000.0)?;
-        check_range("mpc.f_max_n", self.f_max_n, self.f_min_n.max(1.0), 5000.0)?;
+        if let Some(f) = self.f_max_n {
+            check_range("mpc.f_max_n", f, self.f_min_n.max(1.0), 5000.0)?;
+        }
         for (name, w) in [
             ("mpc.weight_rpy", self.weight_rpy),
             ("mpc.weight_position", self.weight_position),
@@ -197,6 +202,8 @@ pub struct MpcSolution {
 /// The MPC with its workspace. One per robot; no global state.
 #[derive(Clone)]
 pub struct ConvexMpc {
+    /// [`MpcConfig::f_max_n`] as resolved, N.
+    f_max_n: f64,
     config: MpcConfig,
     body: CompositeBody,
     last_good: Option<LegMap<Vector3<f64>>>,
@@ -210,8 +217,13 @@ pub struct ConvexMpc {
 impl ConvexMpc {
     pub fn new(config: MpcConfig, body: CompositeBody) -> Result<Self, ConfigError> {
         config.validate()?;
+        let f_max_n = config.f_max_n.ok_or_else(|| ConfigError::Invalid {
+            name: "mpc.f_max_n".into(),
+            message: "is unset: the robot's bound fills it (LocomotionController::new)".into(),
+        })?;
         let n = config.horizon;
         Ok(ConvexMpc {
+            f_max_n,
             body,
             last_good: None,
             b: Vec::with_capacity(n),
@@ -399,7 +411,7 @@ impl ConvexMpc {
                 r_in += 1;
             }
             g[r_in * nv + fz] = 1.0;
-            h[r_in] = self.config.f_max_n;
+            h[r_in] = self.f_max_n;
             r_in += 1;
             if with_fmin {
                 g[r_in * nv + fz] = -1.0;
@@ -485,7 +497,7 @@ impl ConvexMpc {
             .map(|pinv| pinv * rhs)
             .unwrap_or_else(|_| DVector::from_element(legs.len(), weight / legs.len() as f64));
         for (j, leg) in legs.iter().enumerate() {
-            out[*leg] = Vector3::new(0.0, 0.0, fz[j].clamp(0.0, self.config.f_max_n));
+            out[*leg] = Vector3::new(0.0, 0.0, fz[j].clamp(0.0, self.f_max_n));
         }
         out
     }

@@ -13,8 +13,10 @@ struct Scene {
     contacts: Vec<LegMap<bool>>,
 }
 
-fn standing_scene(config: MpcConfig) -> Scene {
+fn standing_scene(mut config: MpcConfig) -> Scene {
     let robot = RobotConfig::a1();
+    // The bound `LocomotionController::new` gives the A1 (its file's).
+    config.f_max_n.get_or_insert(robot.mpc_f_max_n());
     let kin = LegKinematics::new(&robot);
     let composite = robot.composite_body(&robot.standing_pose());
     let n = config.horizon;
@@ -140,10 +142,10 @@ fn friction_and_force_limits_hold_on_every_solution() {
             let config = MpcConfig {
                 solver,
                 friction_coefficient: rng.random_range(0.2..0.8),
-                f_max_n: rng.random_range(60.0..150.0),
+                f_max_n: Some(rng.random_range(60.0..150.0)),
                 ..MpcConfig::default()
             };
-            let (mu, fmax) = (config.friction_coefficient, config.f_max_n);
+            let (mu, fmax) = (config.friction_coefficient, config.f_max_n.unwrap());
             let mut scene = standing_scene(config);
             // Demanding references: push hard sideways and forward, tilt, with random contacts.
             let v = Vector3::new(
@@ -300,7 +302,7 @@ fn config_validation_names_the_value() {
     assert!(err.contains("mpc.friction_coefficient"), "{err}");
     let err = MpcConfig {
         f_min_n: 50.0,
-        f_max_n: 10.0,
+        f_max_n: Some(10.0),
         ..MpcConfig::default()
     }
     .validate()
