@@ -97,6 +97,10 @@ impl ControlPipeline {
     }
 
     /// One control update: estimate → controller (plan → MPC → leg control).
+    ///
+    /// # Panics
+    /// With a filter ([`ControlPipeline::set_filter`]) and no IMU reading in `sensed`: a loop
+    /// that runs the filter reads the IMU at every step.
     pub fn update(
         &mut self,
         sensed: &Sensed,
