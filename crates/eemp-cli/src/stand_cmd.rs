@@ -33,6 +33,11 @@ pub struct StandArgs {
     pub trace_hz: f64,
     #[command(flatten)]
     pub sensing: crate::state_source_arg::StateSourceArgs,
+    /// A controller setting, KEY=VALUE (repeatable), as `eemp walk --set` takes it: `mpc.*`,
+    /// `swing.*`, `slip.*`, `schedule.*`, and `filter.*` with `--estimator kf` (standing has no
+    /// planner).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub set: Vec<String>,
     /// Robot description: robots/a1.toml (the default, compiled in), robots/go2.toml,
     /// robots/go1.toml, or your own file.
     #[arg(long)]
@@ -88,7 +93,26 @@ pub fn run(args: &StandArgs) -> Result<(), String> {
     controller
         .validate()
         .map_err(|e| format!("--mpc-period: {e}"))?;
-    let source = args.sensing.source(&robot)?;
+    let mut source = args.sensing.source(&robot)?;
+    if let Some(s) = args
+        .set
+        .iter()
+        .find(|s| s.trim_start().starts_with("planner."))
+    {
+        return Err(format!(
+            "--set {s}: standing has no planner (planner.* is for eemp walk)"
+        ));
+    }
+    let settings = eemp_core::settings::ControllerSettings {
+        planner: Default::default(),
+        controller,
+        filter: source.kf_config().cloned(),
+    }
+    .with_sets(&args.set)?;
+    let controller = settings.controller;
+    if let (Some(kf), Some(mine)) = (settings.filter, source.kf_config_mut()) {
+        *mine = kf;
+    }
     create_dir(&args.out).map_err(|e| e.to_string())?;
     let header: Vec<String> = [
         "time_s",

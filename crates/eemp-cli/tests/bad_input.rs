@@ -58,7 +58,7 @@ fn bad_walk_and_stand_input_exits_2_names_the_value_and_writes_nothing() {
         malformed.to_str().unwrap(),
     );
     // (arguments, what the message must contain)
-    let cases: [(&[&str], &[&str]); 18] = [
+    let cases: [(&[&str], &[&str]); 20] = [
         (
             &["walk", "--gait", "gallop"],
             &["gallop", "trot, walk, free"],
@@ -149,6 +149,20 @@ fn bad_walk_and_stand_input_exits_2_names_the_value_and_writes_nothing() {
         (
             &["walk", "--set", "filter.leg_outlier_mps=0.1"],
             &["filter", "kf estimator"],
+        ),
+        (
+            &["stand", "--set", "planner.progress_factor=1"],
+            &["standing has no planner"],
+        ),
+        (
+            &[
+                "stand",
+                "--estimator",
+                "kf",
+                "--set",
+                "filter.leg_outlier_mps=-1",
+            ],
+            &["filter.leg_outlier_mps", "[0, 10]"],
         ),
     ];
     assert_refused(&dir, &cases);
