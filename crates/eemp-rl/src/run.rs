@@ -441,7 +441,32 @@ impl WalkDescription {
                     .unwrap_or(eemp_core::slip::CAUTIOUS_START),
             );
         }
+        let before_sets = (
+            spec.planner.progress_factor,
+            spec.controller.mpc.friction_coefficient,
+        );
         apply_sets(&mut spec, &self.set, is_eemp)?;
+        // What a set moved away from the table or above the floor, said (not refused: an
+        // experiment may want it).
+        if let Some(theirs) = spec.params_table.as_ref().and_then(|t| t.progress_factor) {
+            let mine = spec.planner.progress_factor;
+            if mine != before_sets.0 && mine != theirs {
+                eprintln!(
+                    "note: the table was selected with progress factor {theirs}; walking with \
+                     planner.progress_factor = {mine} as set"
+                );
+            }
+        }
+        let floor = spec
+            .floor_friction
+            .unwrap_or(robot.simulation.floor_friction);
+        let mu = spec.controller.mpc.friction_coefficient;
+        if mu != before_sets.1 && mu > floor {
+            eprintln!(
+                "note: mpc.friction_coefficient {mu} is above the floor's friction {floor}: the \
+                 MPC may ask the feet for more than the floor gives"
+            );
+        }
         spec.validate().map_err(|e| e.to_string())?;
         Ok(BuiltWalk {
             robot,
