@@ -23,10 +23,6 @@ pub struct StandArgs {
     pub profile: Option<PathBuf>,
     #[command(flatten)]
     pub push: crate::push_arg::PushArgs,
-    /// Time between MPC solves, s (standing is quasi-static: 20 ms tracks as well as 10 ms at
-    /// half the cost).
-    #[arg(long, default_value_t = 0.02)]
-    pub mpc_period: f64,
     /// Rows per second in trace.csv (the simulation runs at 1000 Hz; writing every step costs
     /// about a quarter of the run time).
     #[arg(long, default_value_t = 100.0)]
@@ -86,18 +82,13 @@ pub fn run(args: &StandArgs) -> Result<(), String> {
         ));
     }
     let trace_every = (1000.0 / args.trace_hz).round().max(1.0) as usize;
-    let controller = ControllerConfig {
-        mpc_period_s: args.mpc_period,
-        ..ControllerConfig::default()
-    };
-    controller
-        .validate()
-        .map_err(|e| format!("--mpc-period: {e}"))?;
+    // The walk's controller defaults (MPC every 20 ms); `--set schedule.mpc_period_s=…`.
+    let controller = ControllerConfig::default();
     let mut source = args.sensing.source(&robot)?;
     if let Some(s) = args
         .set
         .iter()
-        .find(|s| s.trim_start().starts_with("planner."))
+        .find(|s| eemp_core::settings::key_of(s).starts_with("planner."))
     {
         return Err(format!(
             "--set {s}: standing has no planner (planner.* is for eemp walk)"

@@ -10,6 +10,7 @@
 use eemp_core::planner::params_table::ParamsTable;
 use eemp_core::planner::Gait;
 use eemp_core::robot::RobotConfig;
+use eemp_core::settings::key_of;
 use eemp_rl::run::{Sensing, WalkDescription};
 use eemp_sim::scenario::Scenario;
 use eemp_sim::walk::VelocityProfile;
@@ -80,7 +81,7 @@ impl MethodConfig {
             .iter()
             .map(String::as_str)
             .filter(|s| {
-                let k = s.split_once('=').map_or(*s, |(k, _)| k).trim();
+                let k = key_of(s);
                 !keys.contains(&k) && !k.starts_with("filter.")
             })
             .collect()
@@ -415,7 +416,7 @@ impl SuiteConfig {
                         if let Some(s) = m
                             .set
                             .iter()
-                            .find(|s| !s.trim_start().starts_with("slip.adapt_friction"))
+                            .find(|s| key_of(s) != "slip.adapt_friction")
                         {
                             return Err(format!(
                                 "method '{}': set {s} is not for eemp_rl = true (a learned table \

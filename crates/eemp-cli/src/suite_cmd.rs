@@ -1025,7 +1025,7 @@ fn rl_against_table<'a>(
             && m.adapt_friction() == slip
             && m.set
                 .iter()
-                .all(|s| s.trim_start().starts_with("slip.adapt_friction"))
+                .all(|s| eemp_core::settings::key_of(s) == "slip.adapt_friction")
     };
     let mut lines = Vec::new();
     for r in cfg.methods.iter().filter(|m| m.is_eemp_rl()) {

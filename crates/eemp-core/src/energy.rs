@@ -6,7 +6,7 @@
 //! the bus; how much of it the battery sees is the robot's bus model
 //! ([`MotorModel::bus_power_w`]). The electronics draw a constant idle power on top. Eq. (8),
 //! the paper's energy, is the net mechanical power of all joints clipped after the sum
-//! ([`crate::metrics::positive_power_w`]); it is kept beside these figures, labelled as the
+//! (`metrics::positive_power_w`); it is kept beside these figures, labelled as the
 //! paper's, never in their place.
 
 use crate::config_error::{check_range, ConfigError};

@@ -14,7 +14,7 @@ use crate::body_state::{BodyState, LegJointState, RobotState};
 use crate::config_error::{check_range, ConfigError};
 use crate::kinematics::LegKinematics;
 use crate::leg::{Leg, LegMap};
-use crate::locomotion::Plan;
+use crate::planner::Plan;
 use nalgebra::{SMatrix, SVector, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 

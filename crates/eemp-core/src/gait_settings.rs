@@ -1,8 +1,8 @@
 //! Each gait's controller settings as data: `settings/<gait>.toml`, compiled in. A file holds
 //! the gait's values where they differ from the config structs' own defaults, as a partial
-//! settings tree (`[planner]`, `[slip]`, …, the tables of [`crate::settings`]); the structs
-//! read their per-gait defaults from it ([`crate::slip::SlipConfig::default_for`],
-//! [`crate::planner::PlannerConfig::ellipse_friction_factor_in_force`]), so a gait's rules are
+//! settings tree (`[planner]`, `[slip]`, …, the tables of the `settings` module); the structs
+//! read their per-gait defaults from it (`SlipConfig::default_for`,
+//! `PlannerConfig::ellipse_friction_factor_in_force`), so a gait's rules are
 //! one file to read and diff, not branches in code.
 //!
 //! The module names gaits by their names and imports nothing else of the crate, so every layer

@@ -46,6 +46,26 @@ impl Default for ControllerConfig {
 }
 
 impl ControllerConfig {
+    /// This config with what it leaves open filled from the robot file's `[control]`: the slip
+    /// detector's start (else [`crate::slip::CAUTIOUS_START`]), the MPC's heat weight (else 0)
+    /// and its foot-force bound ([`RobotConfig::mpc_f_max_n`]). The controller calls it, and so
+    /// does a run's description before its `--set`, so `eemp config show` sees the values.
+    pub fn with_robot_defaults(mut self, robot: &RobotConfig) -> Self {
+        self.slip.initial_friction.get_or_insert(
+            robot
+                .control
+                .slip_initial_friction
+                .unwrap_or(crate::slip::CAUTIOUS_START),
+        );
+        self.mpc
+            .weight_heat
+            .get_or_insert(robot.control.mpc_weight_heat.unwrap_or(0.0));
+        if self.mpc.f_max_n.is_none() {
+            self.mpc.f_max_n = Some(robot.mpc_f_max_n());
+        }
+        self
+    }
+
     pub fn validate(&self) -> Result<(), ConfigError> {
         self.mpc.validate()?;
         self.swing.validate()?;
@@ -90,23 +110,10 @@ pub struct LocomotionController {
 }
 
 impl LocomotionController {
-    /// The robot's `[control]` defaults fill what `config` leaves open (a slip start neither
-    /// gives: [`crate::slip::CAUTIOUS_START`]).
-    pub fn new(robot: &RobotConfig, mut config: ControllerConfig) -> Result<Self, ConfigError> {
-        if config.slip.initial_friction.is_none() {
-            config.slip.initial_friction = Some(
-                robot
-                    .control
-                    .slip_initial_friction
-                    .unwrap_or(crate::slip::CAUTIOUS_START),
-            );
-        }
-        if config.mpc.weight_heat.is_none() {
-            config.mpc.weight_heat = Some(robot.control.mpc_weight_heat.unwrap_or(0.0));
-        }
-        if config.mpc.f_max_n.is_none() {
-            config.mpc.f_max_n = Some(robot.mpc_f_max_n());
-        }
+    /// The robot's `[control]` defaults fill what `config` leaves open
+    /// ([`ControllerConfig::with_robot_defaults`]).
+    pub fn new(robot: &RobotConfig, config: ControllerConfig) -> Result<Self, ConfigError> {
+        let config = config.with_robot_defaults(robot);
         config.validate()?;
         let weight_heat = config.mpc.weight_heat.unwrap_or(0.0);
         let heat_coefficients = match (weight_heat > 0.0, robot.motor_model()) {

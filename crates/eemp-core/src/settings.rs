@@ -125,6 +125,14 @@ impl ControllerSettings {
     }
 }
 
+/// The key of a `key=value` assignment, trimmed (the whole text where there is no `=`).
+pub fn key_of(assignment: &str) -> &str {
+    assignment
+        .split_once('=')
+        .map_or(assignment, |(k, _)| k)
+        .trim()
+}
+
 /// Parses `key=value` and writes it into `tree`.
 pub fn set_in_tree(tree: &mut toml::Table, assignment: &str) -> Result<(), String> {
     let Some((key, raw)) = assignment.split_once('=') else {

@@ -195,7 +195,7 @@ impl SlipConfig {
     /// The default for a gait: the structs' defaults with the gait's `[slip]` of
     /// `settings/<gait>.toml` over them (the walk's gates, speed limit, speed cap and floor, and
     /// why, are in that file).
-    pub fn default_for(gait: crate::planner::gait::Gait) -> Self {
+    pub fn default_for(gait: crate::gait::Gait) -> Self {
         crate::gait_settings::with_gait_table(&SlipConfig::default(), &gait.to_string(), "slip")
     }
 
@@ -538,7 +538,7 @@ mod tests {
     fn the_walks_gates_leave_late_touchdowns_lift_offs_and_a_moving_anchor_alone() {
         // Readings from the walk at 0.5 m/s on the 0.8 floor (filter): each slid under the
         // trot's rule, none under the walk's.
-        use crate::planner::gait::Gait;
+        use crate::gait::Gait;
         assert!(SlipConfig::default_for(Gait::Walk).adapt_friction);
         // The gait's rule turned on, without the cautious start and the cap.
         let turned_on = |gait| SlipConfig {
@@ -580,7 +580,7 @@ mod tests {
 
     #[test]
     fn the_walks_slip_handling_rests_at_the_nominal_above_its_speed() {
-        use crate::planner::gait::Gait;
+        use crate::gait::Gait;
         let walk = SlipConfig {
             initial_friction: None,
             hold_cap_after_slip: 0.0,
@@ -589,7 +589,7 @@ mod tests {
         // The walk's support check stops where its slip handling does.
         assert_eq!(
             walk.max_speed_mps,
-            crate::planner::gait::DEFAULT_WALK_SUPPORT_MAX_SPEED_MPS
+            crate::gait::DEFAULT_WALK_SUPPORT_MAX_SPEED_MPS
         );
         assert_eq!(SlipConfig::default_for(Gait::Trot).max_speed_mps, 0.0);
         let (v, forces) = front_right_slides_flat();
@@ -633,7 +633,7 @@ mod tests {
 
     #[test]
     fn a_floor_found_slippery_caps_the_walks_speed_until_the_coefficient_recovers() {
-        use crate::planner::gait::Gait;
+        use crate::gait::Gait;
         let walk = SlipConfig::default_for(Gait::Walk);
         assert_eq!(walk.slow_below_friction, 0.205);
         assert_eq!(walk.slow_speed_mps, SLIPPERY_SPEED_MPS);
@@ -808,7 +808,7 @@ mod tests {
         }
         // By default the trot and the free gait raise to 0.8 of the asked ratio, the walk (and
         // `Default`) to all of it.
-        use crate::planner::gait::Gait;
+        use crate::gait::Gait;
         for (gait, fraction) in [(Gait::Trot, 0.8), (Gait::Free, 0.8), (Gait::Walk, 1.0)] {
             assert_eq!(
                 SlipConfig::default_for(gait).hold_raise_fraction,

@@ -4,7 +4,7 @@ use crate::body_reference::BodyReference;
 use crate::body_state::RobotState;
 use crate::config_error::{check_range, ConfigError};
 use crate::leg::LegMap;
-use crate::locomotion::Plan;
+use crate::planner::Plan;
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;

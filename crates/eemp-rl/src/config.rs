@@ -213,7 +213,7 @@ pub struct TrainConfig {
     /// rest of it is the filter's default).
     pub kf: TrainKf,
     /// What trains the policy: PPO (every task) or CMA-ES (EEMP-RL's residual, as a re-tuned
-    /// table: [`crate::cma_table`]).
+    /// table: the `cma_table` module).
     pub optimizer: Optimizer,
     /// CMA-ES's settings with `optimizer = "cmaes"`.
     pub cmaes: CmaesConfig,

@@ -17,7 +17,7 @@ use eemp_core::controller::Controller;
 use eemp_core::planner::params_table::ParamsTable;
 use eemp_core::planner::{Gait, PlannerConfig, PlannerParams, VelocityCommand};
 use eemp_core::robot::RobotConfig;
-use eemp_core::settings::ControllerSettings;
+use eemp_core::settings::{key_of, ControllerSettings};
 use eemp_sim::closed_loop::{Push, StateSource, StepRecord};
 use eemp_sim::sensors::SensorNoise;
 #[cfg(feature = "learning")]
@@ -427,20 +427,7 @@ impl WalkDescription {
                 .push(Push::step(at, Vector3::new(0.0, self.push_dv_mps, 0.0)));
         }
         // The robot file's defaults, resolved here so `--set` and `eemp config show` see them.
-        if spec.controller.mpc.weight_heat.is_none() {
-            spec.controller.mpc.weight_heat = Some(robot.control.mpc_weight_heat.unwrap_or(0.0));
-        }
-        if spec.controller.mpc.f_max_n.is_none() {
-            spec.controller.mpc.f_max_n = Some(robot.mpc_f_max_n());
-        }
-        if is_eemp && spec.controller.slip.initial_friction.is_none() {
-            spec.controller.slip.initial_friction = Some(
-                robot
-                    .control
-                    .slip_initial_friction
-                    .unwrap_or(eemp_core::slip::CAUTIOUS_START),
-            );
-        }
+        spec.controller = spec.controller.clone().with_robot_defaults(&robot);
         let before_sets = (
             spec.planner.progress_factor,
             spec.controller.mpc.friction_coefficient,
@@ -496,7 +483,7 @@ fn apply_sets(spec: &mut WalkSpec, sets: &[String], is_eemp: bool) -> Result<(),
     }
     if let Some(s) = sets
         .iter()
-        .find(|s| !is_eemp && !s.trim_start().starts_with("filter."))
+        .find(|s| !is_eemp && !key_of(s).starts_with("filter."))
     {
         return Err(format!(
             "--set {s}: the planner's and the controller's settings are for --controller eemp \
@@ -520,7 +507,7 @@ fn refuse_ignored(settings: &ControllerSettings, sets: &[String]) -> Result<(), 
     let slip = &settings.controller.slip;
     let support = &settings.planner.walk_support;
     for s in sets {
-        let key = s.split_once('=').map_or(s.as_str(), |(k, _)| k).trim();
+        let key = key_of(s);
         let why = if key.starts_with("planner.walk_support.") && gait != Gait::Walk {
             Some(format!(
                 "it is the walk's rule, and this run's gait is {gait}"

@@ -320,11 +320,17 @@ impl Terrain {
     /// Ground height at (x, y), m (what a resting foot or sphere sits on). For many queries,
     /// [`Ground`] computes the rough field once.
     pub fn height_at(&self, x: f64, y: f64) -> f64 {
-        let grid = self.rough.as_ref().map(Self::rough_grid);
-        self.height_with(grid.as_ref(), x, y)
+        Ground::new(self).height_at(x, y)
     }
 
-    fn height_with(&self, rough: Option<&(usize, Vec<f64>)>, x: f64, y: f64) -> f64 {
+    /// [`Terrain::height_at`] with the rough field's grid and the built levels computed.
+    fn height_with(
+        &self,
+        rough: Option<&(usize, Vec<f64>)>,
+        levels: &[(f64, f64, f64)],
+        x: f64,
+        y: f64,
+    ) -> f64 {
         let mut z: f64 = 0.0;
         if let (Some(r), Some((n, h))) = (&self.rough, rough) {
             let n = *n;
@@ -365,7 +371,7 @@ impl Terrain {
                 (r.rise_m - (d - run - r.plateau_m) * r.grade).max(0.0)
             });
         }
-        for (x0, len, h) in self.built_levels() {
+        for &(x0, len, h) in levels {
             if x >= x0 && x <= x0 + len {
                 z = z.max(h);
             }
@@ -502,23 +508,26 @@ impl Terrain {
 }
 
 /// A terrain ready for many height queries (the closed loop's fall check at every step): the
-/// rough field's grid computed once.
+/// rough field's grid and the steps' levels computed once.
 #[derive(Clone, Debug)]
 pub struct Ground {
     terrain: Terrain,
     grid: Option<(usize, Vec<f64>)>,
+    levels: Vec<(f64, f64, f64)>,
 }
 
 impl Ground {
     pub fn new(terrain: &Terrain) -> Self {
         Ground {
             grid: terrain.rough.as_ref().map(Terrain::rough_grid),
+            levels: terrain.built_levels(),
             terrain: terrain.clone(),
         }
     }
 
     /// [`Terrain::height_at`].
     pub fn height_at(&self, x: f64, y: f64) -> f64 {
-        self.terrain.height_with(self.grid.as_ref(), x, y)
+        self.terrain
+            .height_with(self.grid.as_ref(), &self.levels, x, y)
     }
 }

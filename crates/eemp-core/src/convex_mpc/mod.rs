@@ -244,7 +244,7 @@ impl ConvexMpc {
     }
 
     /// Changes the pyramid's friction coefficient for the next solves (a floor found less grippy
-    /// than assumed, [`crate::slip`]); clamped to the configured range.
+    /// than assumed, the `slip` module); clamped to the configured range.
     pub fn set_friction_coefficient(&mut self, mu: f64) {
         self.config.friction_coefficient = mu.clamp(FRICTION_RANGE[0], FRICTION_RANGE[1]);
     }

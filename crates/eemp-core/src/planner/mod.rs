@@ -285,6 +285,12 @@ impl EemPlanner {
         dt_s: f64,
     ) -> Result<Self, ConfigError> {
         config.validate()?;
+        // The gait's factors looked up once, not at every control step.
+        let config = PlannerConfig {
+            ellipse_friction_factor: Some(config.ellipse_friction_factor_in_force()),
+            touchdown_friction_factor: Some(config.touchdown_friction_factor_in_force()),
+            ..config
+        };
         Ok(EemPlanner {
             config,
             kinematics,

@@ -1,6 +1,6 @@
 //! What a planner hands the controller at every control step: the [`Plan`] (stance, swing
 //! references, the body reference over the MPC's horizon) and, for viewers and traces, the
-//! planner's own [`PlanGeometry`]. Standing plans (`crate::stand_profile`) are plans too.
+//! planner's own [`PlanGeometry`]. Standing plans (`stand_profile`) are plans too.
 
 use super::{PlannedSwing, PlannerParams};
 use crate::body_reference::BodyReference;

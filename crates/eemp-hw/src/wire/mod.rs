@@ -3,7 +3,7 @@
 //! ([`a1_protocol`]), the Go2's DDS messages ([`go2_idl`]: their CDR and the C image their CRC
 //! covers, on [`idl_layout`]), and the mapping between those messages and the controller's
 //! joints, IMU and torque commands in the robot's motor order ([`robot_io`]). The transports are
-//! [`crate::link`] (UDP) and [`crate::dds`]; the safety layer every command passes is
+//! the crate's `link` (UDP) and `dds` modules; the safety layer every command passes is
 //! `eemp_core::safety`.
 
 pub mod a1_protocol;
