@@ -67,6 +67,8 @@ pub struct MpcBenchRow {
     /// "quadprog" or "clarabel".
     pub solver: String,
     pub drop_swing_forces: bool,
+    /// `mpc.force_hold_steps` (move blocking; 1: a force per horizon step).
+    pub force_hold_steps: usize,
     /// Feet in contact at any one time.
     pub feet: usize,
     /// QP variables and constraint rows (of the last solve).
@@ -98,6 +100,10 @@ pub struct MpcBenchReport {
     pub trot_median_us: f64,
     /// `median_us / mujoco_step_us`.
     pub ratio: f64,
+    /// The default config with move blocking (`mpc.force_hold_steps` = 2), four feet: median
+    /// solve time, µs, and its ratio to the bare step.
+    pub blocked_median_us: f64,
+    pub blocked_ratio: f64,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -221,6 +227,7 @@ fn time_case(
     case: Case,
     solver: QpSolverKind,
     drop_swing_forces: bool,
+    force_hold_steps: usize,
     options: &MpcBenchOptions,
 ) -> MpcBenchRow {
     let robot = &options.robot;
@@ -229,6 +236,7 @@ fn time_case(
         horizon: options.horizon,
         solver,
         drop_swing_forces,
+        force_hold_steps: config_hold(force_hold_steps, options),
         f_max_n: Some(robot.mpc_f_max_n()),
         ..MpcConfig::default()
     };
@@ -264,6 +272,7 @@ fn time_case(
         label: case.label().to_string(),
         solver: solver_name(solver).to_string(),
         drop_swing_forces,
+        force_hold_steps: config_hold(force_hold_steps, options),
         feet: case.feet(),
         vars: qp_size.0,
         constraints: qp_size.1,
@@ -317,12 +326,26 @@ fn time_mujoco_step(robot: &RobotConfig, steps: usize) -> f64 {
     median_and_p99(&mut per_step_us).0
 }
 
+fn config_hold(force_hold_steps: usize, options: &MpcBenchOptions) -> usize {
+    force_hold_steps.min(options.horizon)
+}
+
+/// The move blocking the bench times beside a force per step (`mpc.force_hold_steps`; opt-in,
+/// docs/design-choices.md).
+const BLOCKED_HOLD_STEPS: usize = 2;
+
+/// Every case × solver × swing-force option, each with a force per horizon step (the paper's
+/// QP, the default) and with move blocking.
 fn run_cases(options: &MpcBenchOptions) -> Vec<MpcBenchRow> {
+    let mut holds = vec![1, config_hold(BLOCKED_HOLD_STEPS, options)];
+    holds.dedup();
     let mut out = Vec::new();
     for case in Case::ALL {
         for solver in [QpSolverKind::Quadprog, QpSolverKind::Clarabel] {
             for drop_swing_forces in [true, false] {
-                out.push(time_case(case, solver, drop_swing_forces, options));
+                for &hold in &holds {
+                    out.push(time_case(case, solver, drop_swing_forces, hold, options));
+                }
             }
         }
     }
@@ -335,23 +358,27 @@ fn report_from(
     mujoco_step_us: f64,
 ) -> MpcBenchReport {
     let default = MpcConfig::default();
-    let headline = |case: Case| {
+    let row = |case: Case, hold: usize| {
         rows.iter()
             .find(|r| {
                 r.label == case.label()
                     && r.solver == solver_name(default.solver)
                     && r.drop_swing_forces == default.drop_swing_forces
+                    && r.force_hold_steps == config_hold(hold, options)
             })
             .expect("the default config is among the measured rows")
     };
-    let standing = headline(Case::Standing);
+    let standing = row(Case::Standing, default.force_hold_steps);
     let (median_us, p99_us) = (standing.median_us, standing.p99_us);
-    let trot_median_us = headline(Case::Trot).median_us;
+    let trot_median_us = row(Case::Trot, default.force_hold_steps).median_us;
+    let blocked_median_us = row(Case::Standing, BLOCKED_HOLD_STEPS).median_us;
     MpcBenchReport {
         horizon: options.horizon,
         median_us,
         p99_us,
         trot_median_us,
+        blocked_median_us,
+        blocked_ratio: blocked_median_us / mujoco_step_us,
         ratio: median_us / mujoco_step_us,
         mujoco_step_us,
         rows,
@@ -374,6 +401,7 @@ struct Headline {
     trot_median_us: f64,
     mujoco_step_us: f64,
     ratio: f64,
+    blocked_ratio: f64,
 }
 
 impl MpcBenchReport {
@@ -381,10 +409,11 @@ impl MpcBenchReport {
     pub fn table(&self) -> String {
         let mut s = format!("MPC solve time, horizon {}\n", self.horizon);
         s += &format!(
-            "{:<9} {:<9} {:>10} {:>5} {:>5} {:>6} {:>11} {:>11} {:>6} {:>9}\n",
+            "{:<9} {:<9} {:>10} {:>4} {:>5} {:>5} {:>6} {:>11} {:>11} {:>6} {:>9}\n",
             "case",
             "solver",
             "drop_swing",
+            "hold",
             "feet",
             "vars",
             "cons",
@@ -395,10 +424,11 @@ impl MpcBenchReport {
         );
         for r in &self.rows {
             s += &format!(
-                "{:<9} {:<9} {:>10} {:>5} {:>5} {:>6} {:>11.1} {:>11.1} {:>6.1} {:>9}\n",
+                "{:<9} {:<9} {:>10} {:>4} {:>5} {:>5} {:>6} {:>11.1} {:>11.1} {:>6.1} {:>9}\n",
                 r.label,
                 r.solver,
                 r.drop_swing_forces,
+                r.force_hold_steps,
                 r.feet,
                 r.vars,
                 r.constraints,
@@ -411,13 +441,22 @@ impl MpcBenchReport {
         s += &format!(
             "MuJoCo step (bare mj_step): {:.2} us\n\
              default config, four feet: median {:.1} us, p99 {:.1} us = {:.1} MuJoCo steps\n\
-             default config, trot (two feet): median {:.1} us",
-            self.mujoco_step_us, self.median_us, self.p99_us, self.ratio, self.trot_median_us
+             default config, trot (two feet): median {:.1} us\n\
+             with move blocking (--set mpc.force_hold_steps={BLOCKED_HOLD_STEPS}), four feet: \
+             median {:.1} us = {:.1} MuJoCo steps",
+            self.mujoco_step_us,
+            self.median_us,
+            self.p99_us,
+            self.ratio,
+            self.trot_median_us,
+            self.blocked_median_us,
+            self.blocked_ratio
         );
         s
     }
 
-    /// One JSON object: horizon, median_us, p99_us, trot_median_us, mujoco_step_us, ratio.
+    /// One JSON object: horizon, median_us, p99_us, trot_median_us, mujoco_step_us, ratio,
+    /// blocked_ratio.
     pub fn json_line(&self) -> String {
         serde_json::to_string(&Headline {
             horizon: self.horizon,
@@ -426,6 +465,7 @@ impl MpcBenchReport {
             trot_median_us: self.trot_median_us,
             mujoco_step_us: self.mujoco_step_us,
             ratio: self.ratio,
+            blocked_ratio: self.blocked_ratio,
         })
         .expect("plain numbers serialise")
     }
@@ -457,22 +497,38 @@ mod tests {
         for r in run_cases(&tiny()) {
             assert_eq!(r.fallbacks, 0, "{r:?}");
             assert!(r.mean_iterations > 0.0, "{r:?}");
-            // Variables: 3 per kept (step, foot); rows: 5 per foot in contact + 3 equality rows
-            // per kept swing foot (f_min is 0 by default).
-            let kept = if r.drop_swing_forces { r.feet } else { 4 };
-            assert_eq!(r.vars, 3 * kept * 10, "{r:?}");
+            // Variables: 3 per force block; rows: 5 per block in contact + 3 equality rows per
+            // kept swing block (f_min is 0 by default).
+            let case = Case::ALL
+                .into_iter()
+                .find(|c| c.label() == r.label)
+                .unwrap();
+            let scene = Scene::new(case, 10, &LegKinematics::new(&RobotConfig::a1()));
+            let blocks = eemp_core::convex_mpc::force_blocks(
+                &scene.contacts,
+                MpcConfig::default().force_hold_start,
+                r.force_hold_steps,
+                r.drop_swing_forces,
+            );
+            let in_contact = blocks.iter().filter(|b| b.contact).count();
+            assert_eq!(r.vars, 3 * blocks.len(), "{r:?}");
             assert_eq!(
                 r.constraints,
-                10 * (5 * r.feet + 3 * (kept - r.feet)),
+                5 * in_contact + 3 * (blocks.len() - in_contact),
                 "{r:?}"
             );
+            if r.force_hold_steps == 1 {
+                let kept = if r.drop_swing_forces { r.feet } else { 4 };
+                assert_eq!(r.vars, 3 * kept * 10, "{r:?}");
+            }
         }
     }
 
     #[test]
-    fn tiny_report_is_finite_and_its_json_line_has_the_six_keys() {
+    fn tiny_report_is_finite_and_its_json_line_has_the_seven_keys() {
         let report = bench_mpc(&tiny());
-        assert_eq!(report.rows.len(), 8);
+        // 2 cases × 2 solvers × 2 swing-force options × (unblocked, default blocking).
+        assert_eq!(report.rows.len(), 16);
         for r in &report.rows {
             assert!(r.median_us.is_finite() && r.median_us > 0.0, "{r:?}");
             assert!(r.p99_us.is_finite() && r.p99_us >= r.median_us, "{r:?}");
@@ -483,6 +539,7 @@ mod tests {
             report.trot_median_us,
             report.mujoco_step_us,
             report.ratio,
+            report.blocked_ratio,
         ] {
             assert!(v.is_finite(), "{report:?}");
         }
@@ -495,6 +552,7 @@ mod tests {
         assert_eq!(
             keys,
             [
+                "blocked_ratio",
                 "horizon",
                 "median_us",
                 "mujoco_step_us",

@@ -71,6 +71,55 @@ pub struct MetricsAccumulator {
 /// nothing: a trot commanded to 0 m/s did no positive work over 9 mm of drift and read CoT 0.
 pub const MIN_COT_DISTANCE_M: f64 = 0.05;
 
+/// Which energy a cost of transport counts: what a sweep's selection minimises
+/// (`[selection] objective`), what a table's `cot` column holds, and what EEMP-RL's reward
+/// measures (`rewards.objective`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum CotObjective {
+    /// Eq. (8): the net mechanical power of all joints (the paper's).
+    #[default]
+    Eq8,
+    /// The drives' electrical power under the robot's `[motor]` model (its bus model included).
+    Electrical,
+    /// The same plus the electronics' idle power: what the battery pays.
+    ElectricalIdle,
+}
+
+impl CotObjective {
+    /// The energy it counts over a run, J (`None`: an electrical objective without a motor
+    /// model).
+    pub fn energy_j(self, m: &WalkMetrics) -> Option<f64> {
+        match self {
+            CotObjective::Eq8 => Some(m.energy_j),
+            CotObjective::Electrical => m.electrical.as_ref().map(|e| e.motor_energy_j),
+            CotObjective::ElectricalIdle => m.electrical.as_ref().map(|e| e.energy_j),
+        }
+    }
+
+    /// Its CoT over a run (`None` under [`MIN_COT_DISTANCE_M`] or without a motor model).
+    pub fn cot(self, m: &WalkMetrics) -> Option<f64> {
+        match self {
+            CotObjective::Eq8 => m.cot,
+            CotObjective::Electrical => m.electrical.as_ref().and_then(|e| e.cot_motors),
+            CotObjective::ElectricalIdle => m.electrical.as_ref().and_then(|e| e.cot),
+        }
+    }
+
+    pub fn is_eq8(&self) -> bool {
+        *self == CotObjective::Eq8
+    }
+
+    /// Its name in files (`eq8`, `electrical`, `electrical-idle`).
+    pub fn name(self) -> &'static str {
+        match self {
+            CotObjective::Eq8 => "eq8",
+            CotObjective::Electrical => "electrical",
+            CotObjective::ElectricalIdle => "electrical-idle",
+        }
+    }
+}
+
 /// Summary metrics of a run (over the measured window).
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct WalkMetrics {

@@ -193,6 +193,18 @@ pub const KEYS: &[KeyDoc] = &[
         "true/false",
         "Leave swing feet's force variables out of the QP instead of bounding them to zero",
     ),
+    k(
+        "mpc.force_hold_steps",
+        "steps",
+        "[1, mpc.horizon]",
+        "Move blocking: a foot's force held over this many steps; 1: one per step (eq. 2)",
+    ),
+    k(
+        "mpc.force_hold_start",
+        "steps",
+        "[1, mpc.horizon]",
+        "First horizon step whose force may be held with the next ones (move blocking)",
+    ),
     // swing: SwingGains
     k(
         "swing.kp_n_per_m",

@@ -89,7 +89,7 @@ struct Evaluation {
     fitness: f64,
     steps: u64,
     falls: usize,
-    /// The episodes' energy (eq. 8's numerator) and distance summed over their decision
+    /// The episodes' energy (the reward's, `rewards.objective`) and distance summed over their decision
     /// intervals (NaN in a cache written before they were recorded).
     energy_j: f64,
     distance_m: f64,
@@ -583,7 +583,8 @@ struct Episode {
     /// Decisions taken.
     steps: u64,
     fell: bool,
-    /// Summed over the decision intervals (eq. 8's energy and ΔD of each).
+    /// Summed over the decision intervals (the reward's energy, `rewards.objective`, and ΔD
+    /// of each).
     energy_j: f64,
     distance_m: f64,
 }
@@ -614,11 +615,13 @@ fn run_episode(
             .wrapping_add(index as u64),
     );
     use crate::env::Env;
-    let fall_penalty = config
+    let (fall_penalty, objective) = config
         .eemp_rl
         .residual
         .as_ref()
-        .map_or(0.0, |r| r.rewards.fall);
+        .map_or((0.0, Default::default()), |r| {
+            (r.rewards.fall, r.rewards.objective)
+        });
     let mut obs = vec![0f32; env.obs_dim()];
     let mut terms = vec![0f64; env.reward_terms().len()];
     env.reset(&mut rng, &mut obs);
@@ -640,7 +643,7 @@ fn run_episode(
         };
         out.steps += 1;
         if let Some(m) = env.last_interval() {
-            out.energy_j += m.energy_j;
+            out.energy_j += objective.energy_j(m).unwrap_or(f64::NAN);
             out.distance_m += m.distance_m;
         }
         if info.invalid || info.terminated || info.truncated {

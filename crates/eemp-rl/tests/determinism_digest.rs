@@ -113,6 +113,25 @@ fn every_shipped_robot_and_gait_walks_its_pinned_bytes() {
     );
 }
 
+/// Move blocking (`mpc.force_hold_steps = 2`, opt-in: docs/design-choices.md): its walks are
+/// pinned as the defaults are.
+#[test]
+fn the_move_blocked_mpc_walks_its_pinned_bytes() {
+    let (mut got, mut mismatched) = (Vec::new(), false);
+    for (gait, estimator, pin) in [
+        ("trot", "ground-truth", 0xa4030ff9f13b1acf_u64),
+        ("walk", "ground-truth", 0x2bbbbd62d9d0e065),
+        ("free", "kf", 0x2d070514a5ae2610),
+    ] {
+        let table = format!("tables/a1_{gait}.toml");
+        let (d, fell) = digest_of("a1", gait, estimator, &table, &["mpc.force_hold_steps=2"]);
+        assert!(!fell, "{gait} {estimator} fell");
+        got.push(format!("{gait} {estimator}: {d:#018x}"));
+        mismatched |= d != pin;
+    }
+    assert!(!mismatched, "digests now:\n{}", got.join("\n"));
+}
+
 /// The battery-aware EEMP (docs/energy.md): the battery tables on the MPC that weighs the
 /// motors' heat. Its free gait pairs the diagonal legs with the trot's parameters at 0.3 m/s and
 /// walks the trot's bytes.

@@ -698,3 +698,76 @@ fn the_paired_reward_is_the_policys_terms_minus_the_tables_from_the_same_state()
     }
     assert_eq!(paired[3], 0.0);
 }
+
+/// `rewards.objective = "electrical-idle"`: the energy term is the window's battery CoT (the
+/// electrical CoT with idle power, the walk metrics' own) against a table whose `cot` counts
+/// the same; a table selected under eq. (8) is refused, naming the key.
+#[test]
+fn the_electrical_objective_rewards_the_battery_cot_against_a_table_of_the_same() {
+    use eemp_core::metrics::CotObjective;
+    let mut cfg = residual_config(3.0);
+    let mut r = cfg.residual.take().unwrap();
+    r.rewards.objective = CotObjective::ElectricalIdle;
+    // The eq.-8 table: refused.
+    cfg.residual = Some(r.clone());
+    let err = cfg.validate().unwrap_err().to_string();
+    assert!(
+        err.contains("eemp_rl.residual.rewards.objective") && err.contains("eq8"),
+        "{err}"
+    );
+    // The same table marked as holding battery CoTs (its values are eq. 8's: only the ratio's
+    // denominator, which the check below reads back).
+    let mut table = r.table.take().unwrap();
+    table.objective = CotObjective::ElectricalIdle;
+    r.table = Some(table.clone());
+    cfg.residual = Some(r.clone());
+    cfg.validate().unwrap();
+
+    let robot = RobotConfig::a1();
+    let model = eemp_sim::backend::build_model(&robot, &Default::default()).unwrap();
+    let mut env = EempRlEnv::new(&robot, model, cfg.clone()).unwrap();
+    let speed = 0.4;
+    let command = VelocityCommand {
+        vx_mps: speed,
+        ..Default::default()
+    };
+    let mut obs = vec![0f32; cfg.obs_dim()];
+    let mut terms = vec![0.0; 4];
+    env.reset_with(command, 3, &[], &mut obs);
+    let mut checked = 0;
+    loop {
+        let info = env.step(
+            &[0.0; 5],
+            &mut ChaCha8Rng::seed_from_u64(0),
+            &mut obs,
+            &mut terms,
+        );
+        assert!(!info.terminated && !info.invalid, "{info:?}");
+        let m = env.last_interval().unwrap();
+        if let (Some(battery), Some(eq8)) = (m.electrical.as_ref().and_then(|e| e.cot), m.cot) {
+            assert!(battery > 1.5 * eq8, "battery {battery} vs eq. 8 {eq8}");
+            let (cot_table, _) = table.metrics_at(speed).unwrap();
+            let w = &r.rewards;
+            let expect = w.energy * (1.0 - (battery / cot_table).clamp(0.0, w.ratio_clip));
+            assert!(
+                (terms[0] - expect).abs() < 1e-12,
+                "{} vs {expect}",
+                terms[0]
+            );
+            checked += 1;
+        }
+        if info.truncated {
+            break;
+        }
+    }
+    assert!(checked >= 3, "{checked} windows with a CoT");
+    // Without a motor model the electrical objective cannot be measured: refused by name.
+    let mut bare = robot.clone();
+    bare.motor = None;
+    let model = eemp_sim::backend::build_model(&bare, &Default::default()).unwrap();
+    let err = EempRlEnv::new(&bare, model, cfg).err().unwrap();
+    assert!(
+        err.contains("rewards.objective") && err.contains("[motor]"),
+        "{err}"
+    );
+}

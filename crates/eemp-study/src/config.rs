@@ -200,6 +200,28 @@ impl MpcWeights {
         out
     }
 
+    /// The `--set` assignments that run a walk with these weights, as the sweep ran them
+    /// (`mpc.weight_velocity=[10, 10, 5]`, `mpc.weight_heat=0.002`).
+    pub fn as_sets(&self) -> Vec<String> {
+        self.entries()
+            .into_iter()
+            .map(|(k, v)| {
+                let key = match k {
+                    "heat" => "mpc.weight_heat".to_string(),
+                    "force" => "mpc.weight_force".to_string(),
+                    other => format!("mpc.weight_{other}"),
+                };
+                match v.as_slice() {
+                    [x] => format!("{key}={x}"),
+                    xs => format!(
+                        "{key}=[{}]",
+                        xs.iter().map(f64::to_string).collect::<Vec<_>>().join(", ")
+                    ),
+                }
+            })
+            .collect()
+    }
+
     /// `velocity = [10, 10, 5]; force = 0.001`, or `default`.
     pub fn describe(&self) -> String {
         let e = self.entries();
@@ -415,18 +437,8 @@ pub struct SelectionConfig {
     pub objective: Objective,
 }
 
-/// The energy a sweep's selection minimises (`[selection] objective`).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Objective {
-    /// Eq. (8): the net mechanical power of all joints (the paper's).
-    #[default]
-    Eq8,
-    /// The drives' electrical power under the robot's `[motor]` model (its bus model included).
-    Electrical,
-    /// The same plus the electronics' idle power: what the battery pays.
-    ElectricalIdle,
-}
+/// The energy a sweep's selection minimises (`[selection] objective`), written into its tables.
+pub use eemp_core::metrics::CotObjective as Objective;
 
 impl Default for SelectionConfig {
     fn default() -> Self {
@@ -1003,6 +1015,26 @@ impl<'de> Deserialize<'de> for AxisSpec {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn mpc_weights_as_sets_run_the_weights_the_sweep_applied() {
+        let w = MpcWeights {
+            velocity: Some([10.0, 10.0, 5.0]),
+            force: Some(1e-4),
+            heat: Some(0.002),
+            ..Default::default()
+        };
+        let base = eemp_core::settings::ControllerSettings {
+            planner: Default::default(),
+            controller: Default::default(),
+            filter: None,
+        };
+        let mut applied = base.controller.mpc.clone();
+        w.apply(&mut applied);
+        let set = base.with_sets(&w.as_sets()).unwrap();
+        assert_eq!(set.controller.mpc, applied);
+        assert!(MpcWeights::default().as_sets().is_empty());
+    }
+
     use super::*;
 
     const GOOD: &str = r#"

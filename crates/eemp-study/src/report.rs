@@ -284,6 +284,7 @@ pub fn write_tables(
             .and_then(|t| t.with_progress_factor(grid.progress_factor.get(g.gait)))
             .map(|t| eemp_core::planner::params_table::ParamsTable {
                 robot: Some(robot.id()),
+                objective: sel.objective,
                 ..t
             })
             .map_err(|e| StudyError::Results {
@@ -313,7 +314,8 @@ pub fn write_tables(
              # {}: per speed the grid point with the lowest score cot - {} * manipulability among\n\
              # points that stood in every seed, tracked the command within {} m/s (velocity RMSE)\n\
              # and whose mean speed is off the command by at most {} x the command.\n\
-             # Use: eemp walk --gait {} --params-table {}\n{kf_note}{objective_note}{}",
+             # Use (with the MPC it was selected on): eemp walk --gait {} --params-table {}{}\n\
+             {kf_note}{objective_note}{}",
             g.gait,
             sweep_dir.display(),
             sel.manipulability_weight,
@@ -321,6 +323,11 @@ pub fn write_tables(
             sel.max_speed_error_ratio,
             g.gait,
             path.display(),
+            grid.mpc_weights
+                .as_sets()
+                .iter()
+                .map(|s| format!(" --set {s}"))
+                .collect::<String>(),
             table.to_toml()
         );
         crate::store::write_atomic(&path, text.as_bytes())?;

@@ -59,6 +59,13 @@ pub struct MpcConfig {
     /// Leave the force variables of feet out of contact out of the QP (smaller problem) instead
     /// of bounding them to zero.
     pub drop_swing_forces: bool,
+    /// Move blocking: from step `force_hold_start` on, each foot's force is held over runs of
+    /// up to this many horizon steps with the same contact, one QP variable per run
+    /// ([`force_blocks`]). 1: a force per step (the paper's eq. 2).
+    pub force_hold_steps: usize,
+    /// The first horizon step whose force may be held with the next ones; the steps before it
+    /// keep a force each (step 0's is the one applied).
+    pub force_hold_start: usize,
 }
 
 impl Default for MpcConfig {
@@ -80,6 +87,8 @@ impl Default for MpcConfig {
             weight_heat: None,
             solver: QpSolverKind::Quadprog,
             drop_swing_forces: true,
+            force_hold_steps: 1,
+            force_hold_start: 2,
         }
     }
 }
@@ -109,6 +118,18 @@ impl MpcConfig {
             }
         }
         check_range("mpc.weight_force", self.weight_force, 1e-12, 1.0)?;
+        check_range(
+            "mpc.force_hold_steps",
+            self.force_hold_steps as f64,
+            1.0,
+            self.horizon as f64,
+        )?;
+        check_range(
+            "mpc.force_hold_start",
+            self.force_hold_start as f64,
+            1.0,
+            self.horizon as f64,
+        )?;
         if let Some(w) = self.weight_heat {
             check_range("mpc.weight_heat", w, 0.0, 1.0)?;
         }
@@ -290,6 +311,125 @@ impl ConvexMpc {
             );
         }
 
+        self.condense_horizon(input);
+
+        let blocks = force_blocks(
+            input.contacts,
+            self.config.force_hold_start,
+            self.config.force_hold_steps,
+            self.config.drop_swing_forces,
+        );
+        let nv = blocks.len() * 3;
+        if nv == 0 {
+            // No foot may push anywhere on the horizon: zero force is the only feasible answer.
+            return MpcSolution {
+                forces_world: LegMap::splat(Vector3::zeros()),
+                status: MpcStatus::Solved,
+                iterations: 0,
+                qp_size: (0, 0),
+            };
+        }
+        // A variable held over several steps collects their terms: P = Tᵀ H T, q = Tᵀ g, with T
+        // the 0/1 map from the QP's variables to the horizon's forces.
+        let full_index = |b: &ForceBlock, c: usize| {
+            let (first, steps, col) = (b.first, b.steps, 3 * b.leg.index() + c);
+            (first..first + steps).map(move |k| k * NU + col)
+        };
+        let mut p = vec![0.0; nv * nv];
+        let mut q = vec![0.0; nv];
+        for (bi, a) in blocks.iter().enumerate() {
+            for ca in 0..3 {
+                let i = 3 * bi + ca;
+                q[i] = full_index(a, ca).map(|fi| self.g_full[fi]).sum();
+                for (bj, b) in blocks.iter().enumerate() {
+                    for cb in 0..3 {
+                        p[i * nv + 3 * bj + cb] = full_index(a, ca)
+                            .flat_map(|fi| full_index(b, cb).map(move |fj| (fi, fj)))
+                            .map(|(fi, fj)| self.h_full[(fi, fj)])
+                            .sum();
+                    }
+                }
+            }
+        }
+        // The stance legs' heat, one 3×3 block per (step, foot in contact), as the caller gives
+        // it ([`heat_matrix_decoupled`]). Still convex (each block is positive semi-definite).
+        if let (Some(heat), Some(w)) = (input.heat, self.config.weight_heat) {
+            if w > 0.0 {
+                for (bi, b) in blocks.iter().enumerate().filter(|(_, b)| b.contact) {
+                    // Held over `steps` steps, the force pays its heat at each.
+                    let w = w * b.steps as f64;
+                    for r in 0..3 {
+                        for c in 0..3 {
+                            p[(3 * bi + r) * nv + 3 * bi + c] += w * heat[b.leg][(r, c)];
+                        }
+                    }
+                }
+            }
+        }
+        // Feet out of contact (only present when their variables are kept): f = 0 as equality
+        // rows, first, because a cone squeezed to a point is degenerate for an active-set method.
+        // Feet in contact: friction pyramid (4 rows), f_z ≤ f_max, and f_z ≥ f_min when f_min > 0.
+        let mu = self.config.friction_coefficient;
+        let with_fmin = self.config.f_min_n > 0.0;
+        let n_contact = blocks.iter().filter(|b| b.contact).count();
+        let meq = 3 * (blocks.len() - n_contact);
+        let m = meq + n_contact * if with_fmin { 6 } else { 5 };
+        let mut g = vec![0.0; m * nv];
+        let mut h = vec![0.0; m];
+        let (mut r_eq, mut r_in) = (0, meq);
+        for (bi, b) in blocks.iter().enumerate() {
+            let (fx, fy, fz) = (3 * bi, 3 * bi + 1, 3 * bi + 2);
+            if !b.contact {
+                for col in [fx, fy, fz] {
+                    g[r_eq * nv + col] = 1.0;
+                    r_eq += 1;
+                }
+                continue;
+            }
+            for (col, sign) in [(fx, 1.0), (fx, -1.0), (fy, 1.0), (fy, -1.0)] {
+                g[r_in * nv + col] = sign;
+                g[r_in * nv + fz] = -mu;
+                r_in += 1;
+            }
+            g[r_in * nv + fz] = 1.0;
+            h[r_in] = self.f_max_n;
+            r_in += 1;
+            if with_fmin {
+                g[r_in * nv + fz] = -1.0;
+                h[r_in] = -self.config.f_min_n;
+                r_in += 1;
+            }
+        }
+
+        match qp_backend::solve(self.config.solver, &mut p, &q, &g, &h, meq) {
+            Ok(sol) => {
+                let mut forces = LegMap::splat(Vector3::zeros());
+                for (bi, b) in blocks.iter().enumerate() {
+                    if b.first == 0 {
+                        forces[b.leg] =
+                            Vector3::new(sol.x[3 * bi], sol.x[3 * bi + 1], sol.x[3 * bi + 2]);
+                    }
+                }
+                self.last_good = Some(forces);
+                MpcSolution {
+                    forces_world: forces,
+                    status: MpcStatus::Solved,
+                    iterations: sol.iterations,
+                    qp_size: (nv, m),
+                }
+            }
+            Err(e) => {
+                let mut s = self.fallback(e, input, contacts_now);
+                s.qp_size = (nv, m);
+                s
+            }
+        }
+    }
+
+    /// The eq. (2) cost over every step's forces, condensed: fills `h_full` and `g_full`
+    /// (J = UᵀHU + 2gᵀU + const, [`condense`]).
+    fn condense_horizon(&mut self, input: &MpcInput) {
+        let n = self.config.horizon;
         let body = input.body;
         let rpy = body.rpy();
         let yaw = rpy.z;
@@ -338,111 +478,6 @@ impl ConvexMpc {
             &mut self.h_full,
             &mut self.g_full,
         );
-
-        // Variables kept in the QP: (step, leg) blocks.
-        let blocks: Vec<(usize, Leg)> = (0..n)
-            .flat_map(|k| Leg::ALL.into_iter().map(move |leg| (k, leg)))
-            .filter(|(k, leg)| !self.config.drop_swing_forces || input.contacts[*k][*leg])
-            .collect();
-        let nv = blocks.len() * 3;
-        if nv == 0 {
-            // No foot may push anywhere on the horizon: zero force is the only feasible answer.
-            return MpcSolution {
-                forces_world: LegMap::splat(Vector3::zeros()),
-                status: MpcStatus::Solved,
-                iterations: 0,
-                qp_size: (0, 0),
-            };
-        }
-        let full_index: Vec<usize> = blocks
-            .iter()
-            .flat_map(|(k, leg)| (0..3).map(move |c| k * NU + 3 * leg.index() + c))
-            .collect();
-        let mut p = vec![0.0; nv * nv];
-        let mut q = vec![0.0; nv];
-        for (i, fi) in full_index.iter().enumerate() {
-            q[i] = self.g_full[*fi];
-            for (j, fj) in full_index.iter().enumerate() {
-                p[i * nv + j] = self.h_full[(*fi, *fj)];
-            }
-        }
-        // The stance legs' heat, one 3×3 block per (step, foot in contact), as the caller gives
-        // it ([`heat_matrix_decoupled`]). Still convex (each block is positive semi-definite).
-        if let (Some(heat), Some(w)) = (input.heat, self.config.weight_heat) {
-            if w > 0.0 {
-                for (bi, (k, leg)) in blocks.iter().enumerate() {
-                    if !input.contacts[*k][*leg] {
-                        continue;
-                    }
-                    for r in 0..3 {
-                        for c in 0..3 {
-                            p[(3 * bi + r) * nv + 3 * bi + c] += w * heat[*leg][(r, c)];
-                        }
-                    }
-                }
-            }
-        }
-        // Feet out of contact (only present when their variables are kept): f = 0 as equality
-        // rows, first, because a cone squeezed to a point is degenerate for an active-set method.
-        // Feet in contact: friction pyramid (4 rows), f_z ≤ f_max, and f_z ≥ f_min when f_min > 0.
-        let mu = self.config.friction_coefficient;
-        let with_fmin = self.config.f_min_n > 0.0;
-        let n_contact = blocks
-            .iter()
-            .filter(|(k, leg)| input.contacts[*k][*leg])
-            .count();
-        let meq = 3 * (blocks.len() - n_contact);
-        let m = meq + n_contact * if with_fmin { 6 } else { 5 };
-        let mut g = vec![0.0; m * nv];
-        let mut h = vec![0.0; m];
-        let (mut r_eq, mut r_in) = (0, meq);
-        for (bi, (k, leg)) in blocks.iter().enumerate() {
-            let (fx, fy, fz) = (3 * bi, 3 * bi + 1, 3 * bi + 2);
-            if !input.contacts[*k][*leg] {
-                for col in [fx, fy, fz] {
-                    g[r_eq * nv + col] = 1.0;
-                    r_eq += 1;
-                }
-                continue;
-            }
-            for (col, sign) in [(fx, 1.0), (fx, -1.0), (fy, 1.0), (fy, -1.0)] {
-                g[r_in * nv + col] = sign;
-                g[r_in * nv + fz] = -mu;
-                r_in += 1;
-            }
-            g[r_in * nv + fz] = 1.0;
-            h[r_in] = self.f_max_n;
-            r_in += 1;
-            if with_fmin {
-                g[r_in * nv + fz] = -1.0;
-                h[r_in] = -self.config.f_min_n;
-                r_in += 1;
-            }
-        }
-
-        match qp_backend::solve(self.config.solver, &mut p, &q, &g, &h, meq) {
-            Ok(sol) => {
-                let mut forces = LegMap::splat(Vector3::zeros());
-                for (bi, (k, leg)) in blocks.iter().enumerate() {
-                    if *k == 0 {
-                        forces[*leg] =
-                            Vector3::new(sol.x[3 * bi], sol.x[3 * bi + 1], sol.x[3 * bi + 2]);
-                    }
-                }
-                self.last_good = Some(forces);
-                MpcSolution {
-                    forces_world: forces,
-                    status: MpcStatus::Solved,
-                    iterations: sol.iterations,
-                    qp_size: (nv, m),
-                }
-            }
-            Err(e) => {
-                let mut s = self.fallback(e, input, contacts_now);
-                s.qp_size = (nv, m);
-                s
-            }
-        }
     }
 
     fn fallback(&self, reason: QpError, input: &MpcInput, contacts: LegMap<bool>) -> MpcSolution {
@@ -501,6 +536,58 @@ impl ConvexMpc {
         }
         out
     }
+}
+
+/// One foot's force held over `steps` horizon steps from `first`: one QP variable (3 components).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ForceBlock {
+    pub leg: Leg,
+    pub first: usize,
+    pub steps: usize,
+    /// Whether the foot may push over these steps (the same at each of them).
+    pub contact: bool,
+}
+
+/// The QP's force variables (move blocking): per foot, a force for each step before
+/// `hold_start` (step 0's is the one applied), then runs of up to `hold_steps` steps over which
+/// the contact does not change; runs out of contact are left out when `drop_swing` is set.
+/// Ordered by first step, then leg, so that `hold_steps` = 1 gives the unblocked problem of
+/// eq. (2) exactly. Why hold forces: the dense QP's cost grows with the cube of its variables,
+/// and forces late in the horizon, which are never applied, only need to be about right for
+/// the first one to be. Why not from step 1: tying step 1's force to step 2's made the
+/// battery-aware free gait fall at 0.7–0.8 m/s (docs/notebook/2026-12-07-battery.md).
+pub fn force_blocks(
+    contacts: &[LegMap<bool>],
+    hold_start: usize,
+    hold_steps: usize,
+    drop_swing: bool,
+) -> Vec<ForceBlock> {
+    let n = contacts.len();
+    let hold = hold_steps.max(1);
+    let mut blocks = Vec::new();
+    for leg in Leg::ALL {
+        let mut first = 0;
+        while first < n {
+            let contact = contacts[first][leg];
+            let mut steps = 1;
+            if first >= hold_start.max(1) {
+                while steps < hold && first + steps < n && contacts[first + steps][leg] == contact {
+                    steps += 1;
+                }
+            }
+            if contact || !drop_swing {
+                blocks.push(ForceBlock {
+                    leg,
+                    first,
+                    steps,
+                    contact,
+                });
+            }
+            first += steps;
+        }
+    }
+    blocks.sort_by_key(|b| (b.first, b.leg.index()));
+    blocks
 }
 
 fn wrap(a: f64) -> f64 {

@@ -309,6 +309,19 @@ fn config_validation_names_the_value() {
     .unwrap_err()
     .to_string();
     assert!(err.contains("mpc.f_max_n"), "{err}");
+    for hold in [0, 11] {
+        let err = MpcConfig {
+            force_hold_steps: hold,
+            ..MpcConfig::default()
+        }
+        .validate()
+        .unwrap_err()
+        .to_string();
+        assert!(
+            err.contains("mpc.force_hold_steps") && err.contains("10"),
+            "{err}"
+        );
+    }
 }
 
 #[test]
@@ -366,8 +379,11 @@ fn the_heat_term_moves_the_standing_weight_to_the_legs_whose_torques_heat_less()
         Matrix3::from_diagonal(&Vector3::new(0.05, 0.05, m))
     });
     let split = |weight_heat: f64| {
+        // A force per step: the problem the optimum below was worked out for (move blocking
+        // ties the later steps' forces and shifts the split by about 1 % of the weight).
         let mut scene = standing_scene(MpcConfig {
             weight_heat: Some(weight_heat),
+            force_hold_steps: 1,
             ..MpcConfig::default()
         });
         let com = scene.body.p_world + scene.mpc.body().com_body;
@@ -453,5 +469,127 @@ fn the_decoupled_heat_is_the_trunk_frame_diagonal_whatever_the_heading() {
             f.dot(&(level * f)),
             max_relative = 1e-12
         );
+    }
+}
+
+#[test]
+fn force_blocks_hold_runs_of_equal_contact_after_the_first_step() {
+    let n = 10;
+    let standing = vec![LegMap::splat(true); n];
+    let steps = |blocks: &[ForceBlock], leg: Leg| -> Vec<(usize, usize)> {
+        blocks
+            .iter()
+            .filter(|b| b.leg == leg)
+            .map(|b| (b.first, b.steps))
+            .collect()
+    };
+    // Worked by hand: steps 0 and 1 alone, then pairs.
+    let b = force_blocks(&standing, 2, 2, true);
+    assert_eq!(
+        steps(&b, Leg::RearLeft),
+        [(0, 1), (1, 1), (2, 2), (4, 2), (6, 2), (8, 2)]
+    );
+    assert_eq!(b.len(), 4 * 6);
+    // Holding from step 1: the last step is left alone.
+    assert_eq!(
+        steps(&force_blocks(&standing, 1, 2, true), Leg::RearLeft),
+        [(0, 1), (1, 2), (3, 2), (5, 2), (7, 2), (9, 1)]
+    );
+    // Ordered by step, then leg.
+    assert!(b
+        .windows(2)
+        .all(|w| (w[0].first, w[0].leg.index()) < (w[1].first, w[1].leg.index())));
+    // 1: one block per (step, foot), the paper's problem.
+    let b = force_blocks(&standing, 2, 1, true);
+    assert_eq!(b.len(), 4 * n);
+    assert!(b.iter().all(|b| b.steps == 1));
+    // A trot switching pairs at step 5: a run never spans the switch; swing runs are dropped,
+    // or kept as zero-force blocks.
+    let trot: Vec<LegMap<bool>> = (0..n)
+        .map(|k| LegMap::from_fn(|leg| matches!(leg, Leg::FrontRight | Leg::RearLeft) == (k < 5)))
+        .collect();
+    let b = force_blocks(&trot, 2, 3, true);
+    assert_eq!(steps(&b, Leg::FrontRight), [(0, 1), (1, 1), (2, 3)]);
+    assert_eq!(steps(&b, Leg::FrontLeft), [(5, 3), (8, 2)]);
+    let kept = force_blocks(&trot, 2, 3, false);
+    assert_eq!(
+        steps(&kept, Leg::FrontLeft),
+        [(0, 1), (1, 1), (2, 3), (5, 3), (8, 2)]
+    );
+    assert!(kept
+        .iter()
+        .all(|b| b.contact == trot[b.first][b.leg]
+            && b.contact == trot[b.first + b.steps - 1][b.leg]));
+}
+
+/// Move blocking minimises the same cost over forces tied equal within each block: checked
+/// against the full problem (every step's forces) with the ties as equality rows, solved by
+/// its KKT system, where no inequality is active.
+#[test]
+fn a_blocked_solve_is_the_full_problem_with_held_forces_tied() {
+    for (start, hold) in [(2, 2), (1, 2), (2, 3)] {
+        let mut scene = standing_scene(MpcConfig {
+            force_hold_start: start,
+            force_hold_steps: hold,
+            ..MpcConfig::default()
+        });
+        for (k, r) in scene.reference.iter_mut().enumerate() {
+            r.v_world = Vector3::new(0.05, -0.02, 0.0);
+            r.p_world += r.v_world * 0.025 * (k + 1) as f64;
+        }
+        scene.body.v_world = Vector3::new(0.02, 0.01, 0.0);
+        scene.body.omega_world = Vector3::new(0.02, -0.03, 0.01);
+        let blocked = scene.solve();
+        assert!(blocked.status.is_solved());
+        assert_eq!(blocked.iterations, 0, "an inequality is active");
+        assert_eq!(
+            blocked.qp_size.0,
+            3 * force_blocks(&scene.contacts, start, hold, true).len()
+        );
+
+        let input = MpcInput {
+            body: &scene.body,
+            reference: &scene.reference,
+            feet_world: &scene.feet,
+            contacts: &scene.contacts,
+            heat: None,
+        };
+        scene.mpc.condense_horizon(&input);
+        let (h, g) = (scene.mpc.h_full.clone(), scene.mpc.g_full.clone());
+        let nu = h.nrows();
+        let mut ties = Vec::new();
+        for b in force_blocks(&scene.contacts, start, hold, true) {
+            for k in b.first + 1..b.first + b.steps {
+                for c in 0..3 {
+                    let col = |step: usize| step * NU + 3 * b.leg.index() + c;
+                    ties.push((col(b.first), col(k)));
+                }
+            }
+        }
+        // [2H Eᵀ; E 0] [U; λ] = [−2g; 0] (J = UᵀHU + 2gᵀU).
+        let m = ties.len();
+        let mut kkt = DMatrix::zeros(nu + m, nu + m);
+        let mut rhs = DVector::zeros(nu + m);
+        kkt.view_mut((0, 0), (nu, nu)).copy_from(&(&h * 2.0));
+        rhs.rows_mut(0, nu).copy_from(&(&g * -2.0));
+        for (r, (a, b)) in ties.iter().enumerate() {
+            for (col, sign) in [(*a, 1.0), (*b, -1.0)] {
+                kkt[(nu + r, col)] = sign;
+                kkt[(col, nu + r)] = sign;
+            }
+        }
+        let u = kkt.lu().solve(&rhs).expect("the KKT system is regular");
+        for leg in Leg::ALL {
+            let full = Vector3::new(
+                u[3 * leg.index()],
+                u[3 * leg.index() + 1],
+                u[3 * leg.index() + 2],
+            );
+            assert!(
+                (full - blocked.forces_world[leg]).norm() < 1e-6,
+                "hold {hold}, {leg:?}: {full:?} vs {:?}",
+                blocked.forces_world[leg]
+            );
+        }
     }
 }

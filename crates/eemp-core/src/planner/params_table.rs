@@ -77,6 +77,9 @@ pub struct ParamsTable {
     /// The robot the table was selected on (`None`: made before stamps, for the A1).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub robot: Option<crate::robot::RobotId>,
+    /// The energy the entries' `cot` counts (and the selection minimised); absent: eq. (8).
+    #[serde(default, skip_serializing_if = "crate::metrics::CotObjective::is_eq8")]
+    pub objective: crate::metrics::CotObjective,
     #[serde(rename = "entry")]
     pub entries: Vec<TableEntry>,
 }
@@ -102,6 +105,7 @@ impl ParamsTable {
             interpolation,
             progress_factor: None,
             robot: None,
+            objective: Default::default(),
             entries,
         };
         table.validate()?;
@@ -110,13 +114,17 @@ impl ParamsTable {
 
     pub fn load(path: &std::path::Path) -> Result<Self, ConfigError> {
         let t: ParamsTable = crate::config_error::load_toml(path)?;
-        let robot = t.robot;
+        let (robot, objective) = (t.robot, t.objective);
         let table = ParamsTable::new(t.gait, t.interpolation, t.entries);
         match t.progress_factor {
             Some(f) => table.and_then(|table| table.with_progress_factor(f)),
             None => table,
         }
-        .map(|table| ParamsTable { robot, ..table })
+        .map(|table| ParamsTable {
+            robot,
+            objective,
+            ..table
+        })
         .map_err(|e| ConfigError::Invalid {
             name: path.display().to_string(),
             message: e.to_string(),

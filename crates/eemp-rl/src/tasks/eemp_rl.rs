@@ -31,8 +31,8 @@ use eemp_core::eemp::{EempController, ParamsSource};
 use eemp_core::kinematics::LegKinematics;
 use eemp_core::leg::{Leg, LegMap};
 use eemp_core::metrics::{
-    cost_of_transport_dimensionless, force_manipulability, positive_power_w, MetricsAccumulator,
-    WalkMetrics,
+    cost_of_transport_dimensionless, force_manipulability, positive_power_w, CotObjective,
+    MetricsAccumulator, WalkMetrics,
 };
 use eemp_core::planner::params::{table_i, TABLE_I_RANGES};
 use eemp_core::planner::params_table::ParamsTable;
@@ -183,6 +183,11 @@ pub struct ResidualRewards {
     pub manipulability: f64,
     /// Paid once, negatively, when the episode ends in a fall (which ends it).
     pub fall: f64,
+    /// The energy the energy term's CoT counts: eq. (8) (the paper's) or the battery's
+    /// electrical CoT under the robot file's motor model. It must be the one the table's `cot`
+    /// counts (its `objective`), since the term is their ratio.
+    #[serde(default, skip_serializing_if = "CotObjective::is_eq8")]
+    pub objective: CotObjective,
 }
 
 impl Default for ResidualRewards {
@@ -193,6 +198,7 @@ impl Default for ResidualRewards {
             tracking: 0.3,
             manipulability: 0.1,
             fall: 10.0,
+            objective: CotObjective::Eq8,
         }
     }
 }
@@ -284,6 +290,19 @@ impl ResidualConfig {
             message,
         };
         table.validate().map_err(|e| invalid(e.to_string()))?;
+        if table.objective != r.objective {
+            return Err(ConfigError::Invalid {
+                name: "eemp_rl.residual.rewards.objective".into(),
+                message: format!(
+                    "is \"{}\" but the cot of {file} counts \"{}\" (its objective): the energy \
+                     term is their ratio (allowed: \"{}\", or a table selected under \"{}\")",
+                    r.objective.name(),
+                    table.objective.name(),
+                    table.objective.name(),
+                    r.objective.name()
+                ),
+            });
+        }
         if table.gait != Gait::Free {
             return Err(invalid(format!(
                 "is a table for the {} gait; EEMP-RL walks the free gait (e.g. tables/a1_free.toml)",
@@ -748,7 +767,7 @@ pub fn residual_reward_terms(
     }
     let (cot_table, manip_table) = table;
     let walking = speed_mps >= 0.5 * table_i::SPEED_MPS[0];
-    let energy = match (walking, m.cot) {
+    let energy = match (walking, w.objective.cot(m)) {
         (false, _) => 0.0,
         (true, Some(c)) if m.distance_m > 1e-6 => {
             w.energy * (1.0 - (c / cot_table).clamp(0.0, w.ratio_clip))
@@ -852,6 +871,16 @@ impl EempRlEnv {
         config: EempRlConfig,
     ) -> Result<Self, String> {
         config.validate().map_err(|e| e.to_string())?;
+        if let Some(r) = &config.residual {
+            if !r.rewards.objective.is_eq8() && robot.motor_model().is_none() {
+                return Err(format!(
+                    "eemp_rl.residual.rewards.objective = \"{}\" needs the robot's motor model: \
+                     robot {} has no [motor] section (allowed: \"eq8\")",
+                    r.rewards.objective.name(),
+                    robot.name
+                ));
+            }
+        }
         let sim = Simulation::with_model(model, simulated).map_err(|e| e.to_string())?;
         let source = config.initial_params_source();
         let spec = walk_spec(&config, source.at_speed(0.0));
@@ -920,7 +949,7 @@ impl EempRlEnv {
         controller.params = self.config.initial_params_source();
         let dt = loop_.sim().timestep_s();
         let kin = &self.kin;
-        let mut metrics = MetricsAccumulator::default();
+        let mut metrics = MetricsAccumulator::new(self.robot.motor_model());
         let mut fell = false;
         for _ in 0..steps {
             let command = self.config.command_at(loop_.elapsed_s(), self.command);
@@ -1087,7 +1116,7 @@ impl Env for EempRlEnv {
         self.controller.params = self.config.params_source(action);
         let dt = self.loop_.sim().timestep_s();
         let mut iv = Interval::default();
-        let mut metrics = MetricsAccumulator::default();
+        let mut metrics = MetricsAccumulator::new(self.robot.motor_model());
         let (kin, last_tau, plan_stance) = (&self.kin, &mut self.last_tau, &mut self.plan_stance);
         let touchdowns = self.config.decision == DecisionTiming::Touchdown;
         let residual = self.config.residual.is_some();
