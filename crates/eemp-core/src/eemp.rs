@@ -27,7 +27,9 @@ impl ParamsSource {
             ParamsSource::Constant(p) => *p,
             ParamsSource::Table(t) => t.lookup(speed_mps),
             ParamsSource::Residual { table, delta } => {
-                table.lookup(speed_mps).offset_within_table_i(delta)
+                table
+                    .lookup(speed_mps)
+                    .offset_within(delta, &table.param_ranges())
             }
         }
     }

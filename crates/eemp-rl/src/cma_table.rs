@@ -113,15 +113,17 @@ fn key(x: &[f64]) -> String {
 }
 
 /// The table the candidate `x` stands for: each entry corrected by Δ = bounds ⊙ tanh(x_entry),
-/// clipped to Table I; metrics dropped (they were the original's).
+/// clipped to the table's ranges ([`ParamsTable::param_ranges`]: Table I, widened to its
+/// entries); metrics dropped (they were the original's).
 pub fn corrected_table(table: &ParamsTable, bounds: &[f64; 5], x: &[f64]) -> ParamsTable {
+    let ranges = table.param_ranges();
     let entries = table
         .entries
         .iter()
         .enumerate()
         .map(|(k, e)| {
             let delta: [f64; 5] = std::array::from_fn(|i| bounds[i] * x[5 * k + i].tanh());
-            TableEntry::new(e.speed_mps, &e.params().offset_within_table_i(&delta))
+            TableEntry::new(e.speed_mps, &e.params().offset_within(&delta, &ranges))
         })
         .collect();
     ParamsTable {

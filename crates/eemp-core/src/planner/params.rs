@@ -91,8 +91,14 @@ impl PlannerParams {
     /// into Table I; a non-finite component of `delta` counts as 0. With a zero `delta` the
     /// result is `self`, bit for bit, when `self` is inside Table I.
     pub fn offset_within_table_i(&self, delta: &[f64; 5]) -> Self {
+        self.offset_within(delta, &TABLE_I_RANGES)
+    }
+
+    /// [`Self::offset_within_table_i`] with `ranges` in place of Table I's (e.g. a table's own,
+    /// [`super::params_table::ParamsTable::param_ranges`]).
+    pub fn offset_within(&self, delta: &[f64; 5], ranges: &[[f64; 2]; 5]) -> Self {
         let mut a = self.to_array();
-        for ((v, d), [lo, hi]) in a.iter_mut().zip(delta).zip(TABLE_I_RANGES) {
+        for ((v, d), &[lo, hi]) in a.iter_mut().zip(delta).zip(ranges) {
             let d = if d.is_finite() { *d } else { 0.0 };
             *v = (*v + d).clamp(lo, hi);
         }

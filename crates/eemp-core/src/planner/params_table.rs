@@ -139,6 +139,21 @@ impl ParamsTable {
         Ok(self)
     }
 
+    /// The range each parameter of a correction to this table may take (a residual, EEMP-RL):
+    /// Table I's, widened to cover the table's own entries. A table selected beyond Table I (the
+    /// battery tables' body heights) keeps its values under a zero correction, and a table
+    /// inside it keeps Table I's ranges exactly.
+    pub fn param_ranges(&self) -> [[f64; 2]; 5] {
+        let mut ranges = super::params::TABLE_I_RANGES;
+        for e in &self.entries {
+            for (r, v) in ranges.iter_mut().zip(e.params().to_array()) {
+                r[0] = r[0].min(v);
+                r[1] = r[1].max(v);
+            }
+        }
+        ranges
+    }
+
     pub fn to_toml(&self) -> String {
         toml::to_string(self).expect("a table serialises")
     }
@@ -264,6 +279,26 @@ impl ParamsTable {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn param_ranges_are_table_i_widened_to_the_entries() {
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+        let inside = ParamsTable::load(&root.join("tables/a1_free.toml")).unwrap();
+        assert_eq!(inside.param_ranges(), super::super::params::TABLE_I_RANGES);
+        let battery = ParamsTable::load(&root.join("tables/a1_free_battery.toml")).unwrap();
+        let r = battery.param_ranges();
+        let top = battery
+            .entries
+            .iter()
+            .map(|e| e.params().body_height_m)
+            .fold(f64::MIN, f64::max);
+        assert!(top > super::super::params::table_i::BODY_HEIGHT_M[1]);
+        assert_eq!(r[2], [super::super::params::table_i::BODY_HEIGHT_M[0], top]);
+        // A zero correction keeps every entry as it is.
+        for e in &battery.entries {
+            assert_eq!(e.params().offset_within(&[0.0; 5], &r), e.params());
+        }
+    }
+
     use super::*;
 
     fn table(interpolation: Interpolation) -> ParamsTable {

@@ -3,8 +3,9 @@
 //!
 //! Two forms of the action ([`EempRlConfig::residual`]):
 //! - **Residual** (the shipped policy): a bounded correction of the per-speed table's parameters
-//!   at the commanded speed, p = clamp(table(v) + b ⊙ shrink(tanh(a)), Table I)
-//!   ([`ResidualConfig`], shrink the `deadband`'s soft threshold, the identity at 0); a zero
+//!   at the commanded speed, p = clamp(table(v) + b ⊙ shrink(tanh(a)), the table's ranges)
+//!   (Table I widened to the table's entries, `ParamsTable::param_ranges`; [`ResidualConfig`],
+//!   shrink the `deadband`'s soft threshold, the identity at 0); a zero
 //!   action is EEMP-Analytical bit for bit, and with a zero last layer an untrained policy is.
 //!   Its reward pays for improving on the table ([`ResidualRewards`]).
 //! - **Absolute** (the first policy, `a1_eemp_rl_v1`): five numbers squashed into Table I's
