@@ -26,11 +26,9 @@ impl ParamsSource {
         match self {
             ParamsSource::Constant(p) => *p,
             ParamsSource::Table(t) => t.lookup(speed_mps),
-            ParamsSource::Residual { table, delta } => {
-                table
-                    .lookup(speed_mps)
-                    .offset_within(delta, &table.param_ranges())
-            }
+            ParamsSource::Residual { table, delta } => table
+                .lookup(speed_mps)
+                .offset_within(delta, &table.param_ranges()),
         }
     }
 }
