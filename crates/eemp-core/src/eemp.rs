@@ -16,8 +16,8 @@ pub enum ParamsSource {
     /// EEMP-Analytical: looked up per commanded speed |(v_x, v_y)|.
     Table(ParamsTable),
     /// EEMP-RL's residual: the table's parameters at the commanded speed moved by `delta`
-    /// ([`PlannerParams::to_array`]'s order), clamped into Table I. A zero `delta` is the
-    /// table, bit for bit.
+    /// ([`PlannerParams::to_array`]'s order), clamped into the table's ranges
+    /// ([`ParamsTable::param_ranges`]). A zero `delta` is the table, bit for bit.
     Residual { table: ParamsTable, delta: [f64; 5] },
 }
 

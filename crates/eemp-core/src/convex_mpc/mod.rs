@@ -554,8 +554,8 @@ pub struct ForceBlock {
 /// Ordered by first step, then leg, so that `hold_steps` = 1 gives the unblocked problem of
 /// eq. (2) exactly. Why hold forces: the dense QP's cost grows with the cube of its variables,
 /// and forces late in the horizon, which are never applied, only need to be about right for
-/// the first one to be. Why not from step 1: tying step 1's force to step 2's made the
-/// battery-aware free gait fall at 0.7–0.8 m/s (docs/notebook/2026-12-07-battery.md).
+/// the first one to be. The steps before `hold_start` keep a force each because the near steps
+/// shape the applied force most (measured: docs/notebook/2026-12-07-battery.md).
 pub fn force_blocks(
     contacts: &[LegMap<bool>],
     hold_start: usize,

@@ -911,6 +911,18 @@ impl EempRlEnv {
         })
     }
 
+    /// An empty accumulator for a decision interval: with the battery's account only where the
+    /// reward counts electrical energy (`rewards.objective`), so eq. 8's training steps do not
+    /// pay for it.
+    fn interval_metrics(&self) -> MetricsAccumulator {
+        let electrical = self
+            .config
+            .residual
+            .as_ref()
+            .is_some_and(|r| !r.rewards.objective.is_eq8());
+        MetricsAccumulator::new(electrical.then(|| self.robot.motor_model()).flatten())
+    }
+
     /// The last decision interval's metrics (eq. 8–10 over it; residual form only).
     pub fn last_interval(&self) -> Option<&WalkMetrics> {
         self.last_interval.as_ref()
@@ -950,7 +962,7 @@ impl EempRlEnv {
         controller.params = self.config.initial_params_source();
         let dt = loop_.sim().timestep_s();
         let kin = &self.kin;
-        let mut metrics = MetricsAccumulator::new(self.robot.motor_model());
+        let mut metrics = self.interval_metrics();
         let mut fell = false;
         for _ in 0..steps {
             let command = self.config.command_at(loop_.elapsed_s(), self.command);
@@ -1117,7 +1129,7 @@ impl Env for EempRlEnv {
         self.controller.params = self.config.params_source(action);
         let dt = self.loop_.sim().timestep_s();
         let mut iv = Interval::default();
-        let mut metrics = MetricsAccumulator::new(self.robot.motor_model());
+        let mut metrics = self.interval_metrics();
         let (kin, last_tau, plan_stance) = (&self.kin, &mut self.last_tau, &mut self.plan_stance);
         let touchdowns = self.config.decision == DecisionTiming::Touchdown;
         let residual = self.config.residual.is_some();
