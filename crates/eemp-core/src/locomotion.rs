@@ -304,9 +304,13 @@ impl LocomotionController {
             // every earlier result, bit for bit.
             let v_centre = body.v_world + body.omega_world.cross(&p) + v_rel;
             v_centre
-                - self
-                    .kinematics
-                    .foot_rolling_velocity_world(&j.q, &j.qd, &r, &body.omega_world)
+                - self.kinematics.foot_rolling_velocity_world(
+                    leg,
+                    &j.q,
+                    &j.qd,
+                    &r,
+                    &body.omega_world,
+                )
         })
     }
 }

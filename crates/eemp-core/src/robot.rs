@@ -32,6 +32,37 @@ pub struct RobotConfig {
     /// it changes what a run is charged, not how it moves.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub motor: Option<crate::energy::MotorConfig>,
+    /// Where the robot was read from its own MuJoCo model (a binding file, loaded by
+    /// `eemp_sim::robot_model`): the legs' geometry and links as MuJoCo compiled them. `None`
+    /// for a robot typed into its file (`[trunk]`, `[leg]`), whose model is generated.
+    #[serde(skip)]
+    pub model: Option<std::sync::Arc<ModelDescription>>,
+}
+
+/// What the controllers read from a robot's own MuJoCo model (filled by
+/// `eemp_sim::robot_model`, which compiles it; this crate never reads MJCF).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ModelDescription {
+    /// The model file the binding names.
+    pub source: std::path::PathBuf,
+    /// The robot's MJCF after the binding's edits (motors, passive terms, the project's names),
+    /// without floor, terrain or sensors; the simulation adds those.
+    pub mjcf: String,
+    /// Each leg's geometry at zero joint angles.
+    pub legs: LegMap<crate::kinematics::LegGeometry>,
+    /// Each leg's links (abduction, thigh, calf: every body that moves with that joint), in the
+    /// link frames of [`crate::kinematics::LegKinematics::link_frames`].
+    pub links: LegMap<[LinkInertial; 3]>,
+    /// Hash of the compiled model's arrays the controllers read (the robot's id).
+    pub digest: String,
+}
+
+/// Mass, COM and inertia (about the COM) of a rigid part, in a named link frame.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LinkInertial {
+    pub mass_kg: f64,
+    pub com_m: Vector3<f64>,
+    pub inertia_kg_m2: Matrix3<f64>,
 }
 
 /// `[control]` in a robot file: controller settings measured for this robot, each overridden by
@@ -432,7 +463,8 @@ impl RobotConfig {
     /// The body heights X_z the legs reach, m: from half the leg's length (a deep crouch) to the
     /// stretched leg less 2 cm (the knee must stay bent to steer the foot), foot radius added.
     pub fn body_height_range_m(&self) -> [f64; 2] {
-        let l = self.leg.thigh_length_m + self.leg.calf_length_m;
+        let [l1, l2] = self.leg_geometry(Leg::FrontLeft).segment_lengths_m();
+        let l = l1 + l2;
         [
             0.5 * l + self.leg.foot_radius_m,
             l - 0.02 + self.leg.foot_radius_m,
@@ -486,6 +518,10 @@ impl RobotConfig {
             leg: &self.leg,
         })
         .expect("a robot's numbers serialise");
+        let text = match &self.model {
+            Some(m) => format!("{text}\nmodel = {:?}", m.digest),
+            None => text,
+        };
         RobotId {
             name: self.name.clone(),
             physics_hash: format!("{:016x}", fnv1a64(&text)),
@@ -499,8 +535,53 @@ impl RobotConfig {
 
     /// Total mass of the robot, kg.
     pub fn total_mass_kg(&self) -> f64 {
+        if let Some(m) = &self.model {
+            return self.trunk.mass_kg
+                + Leg::ALL
+                    .iter()
+                    .flat_map(|leg| m.links[*leg].iter().map(|l| l.mass_kg))
+                    .sum::<f64>();
+        }
         let l = &self.leg;
         self.trunk.mass_kg + 4.0 * (l.hip_link.mass_kg + l.thigh_link.mass_kg + l.calf_link.mass_kg)
+    }
+
+    /// The geometry of `leg`: the model's, or the Unitree leg the file types.
+    pub fn leg_geometry(&self, leg: Leg) -> crate::kinematics::LegGeometry {
+        match &self.model {
+            Some(m) => m.legs[leg].clone(),
+            None => {
+                let l = &self.leg;
+                crate::kinematics::LegGeometry::unitree(
+                    leg,
+                    l.hip_offset_m,
+                    l.abduction_to_thigh_m,
+                    l.thigh_length_m,
+                    l.calf_length_m,
+                )
+            }
+        }
+    }
+
+    /// The links of `leg` (abduction, thigh, calf) in their link frames.
+    pub fn leg_links(&self, leg: Leg) -> [LinkInertial; 3] {
+        if let Some(m) = &self.model {
+            return m.links[leg].clone();
+        }
+        let l = &self.leg;
+        [
+            (LinkKind::Hip, &l.hip_link),
+            (LinkKind::Thigh, &l.thigh_link),
+            (LinkKind::Calf, &l.calf_link),
+        ]
+        .map(|(kind, link)| {
+            let (com, inertia) = link.mirrored(leg, kind);
+            LinkInertial {
+                mass_kg: link.mass_kg,
+                com_m: com,
+                inertia_kg_m2: inertia_matrix(&inertia),
+            }
+        })
     }
 
     /// Standing joint angles for every leg.
