@@ -271,7 +271,7 @@ fn main() {
         } => Err(not_built("bench rl", "learning")),
         Command::Model { robot, scenario } => (|| {
             let robot = match robot {
-                Some(p) => eemp_core::robot::RobotConfig::load(&p).map_err(|e| e.to_string())?,
+                Some(p) => eemp_sim::robot_model::load_robot(&p).map_err(|e| e.to_string())?,
                 None => eemp_core::robot::RobotConfig::a1(),
             };
             let scenario = match scenario {

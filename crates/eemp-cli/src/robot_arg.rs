@@ -22,9 +22,9 @@ impl RobotArgs {
     }
 }
 
-/// `path`'s robot, or the shipped A1 ([`RobotConfig::load_or_a1`]).
+/// `path`'s robot, or the shipped A1 (`eemp_sim::robot_model::load_robot_or_a1`).
 pub fn load_robot(path: Option<&std::path::Path>) -> Result<RobotConfig, String> {
-    RobotConfig::load_or_a1(path).map_err(|e| e.to_string())
+    eemp_sim::robot_model::load_robot_or_a1(path).map_err(|e| e.to_string())
 }
 
 /// What summary.json says about the robot a run used.

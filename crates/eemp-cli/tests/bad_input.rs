@@ -45,7 +45,7 @@ fn bad_walk_and_stand_input_exits_2_names_the_value_and_writes_nothing() {
     let bad_params = dir.join("params.toml");
     std::fs::write(
         &bad_params,
-        "swing_time_s = 0.5\nstep_height_m = 0.1\nbody_height_m = 0.31\n\
+        "swing_time_s = 1.5\nstep_height_m = 0.1\nbody_height_m = 0.31\n\
          ellipse_rx_m = 0.07\nellipse_ry_m = 0.05\n",
     )
     .unwrap();
@@ -70,7 +70,7 @@ fn bad_walk_and_stand_input_exits_2_names_the_value_and_writes_nothing() {
         (&["walk", "--duration", "NaN"], &["--duration", "(0, 3600]"]),
         (
             &["walk", "--params", bad_params],
-            &["swing_time_s", "0.5", "[0.1, 0.25]"],
+            &["swing_time_s", "1.5", "[0.05, 1]"],
         ),
         (&["walk", "--params", missing], &["missing.toml"]),
         (&["walk", "--profile", malformed], &["profile.toml"]),

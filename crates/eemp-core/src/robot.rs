@@ -53,7 +53,14 @@ pub struct ModelDescription {
     /// Each leg's links (abduction, thigh, calf: every body that moves with that joint), in the
     /// link frames of [`crate::kinematics::LegKinematics::link_frames`].
     pub links: LegMap<[LinkInertial; 3]>,
-    /// Hash of the compiled model's arrays the controllers read (the robot's id).
+    /// Each leg's joint ranges (abduction, thigh, calf), rad.
+    pub joint_range_rad: LegMap<[[f64; 2]; 3]>,
+    /// Each leg's standing joint angles, rad.
+    pub standing_pose_rad: LegMap<Vector3<f64>>,
+    /// The trunk as compiled: a run's trunk-mass error or payload ([`RobotConfig::trunk`]
+    /// changed) is applied to the compiled model against it.
+    pub compiled_trunk: TrunkConfig,
+    /// Hash of the edited model's MJCF (the robot's id).
     pub digest: String,
 }
 
@@ -83,6 +90,11 @@ pub struct ControlDefaults {
     /// limits ([`RobotConfig::mpc_f_max_n`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mpc_f_max_n: Option<f64>,
+    /// Whether the controller's settings and Table II, tuned on the A1, are scaled to this
+    /// robot ([`RobotScale`]). Default: yes for a robot read from its own model, no for a robot
+    /// typed into its file (the A1, Go1 and Go2 keep what their tables were swept with).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scale_settings: Option<bool>,
 }
 
 impl ControlDefaults {
@@ -357,7 +369,86 @@ pub struct CompositeBody {
     pub inertia_body: Matrix3<f64>,
 }
 
+/// How a robot's size compares with the A1's, the robot the defaults were tuned on: every
+/// setting is scaled by its unit at equal Froude number (gravity unchanged), so a robot λ times
+/// the A1's leg length and μ times its mass gets lengths × λ, times × √λ, speeds × √λ, forces
+/// × μ, N/m gains × μ/λ and cost weights by the inverse squares of their quantities.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RobotScale {
+    /// Leg length (thigh + shank in the leg plane) over the A1's.
+    pub length: f64,
+    /// Total mass over the A1's.
+    pub mass: f64,
+}
+
+impl RobotScale {
+    /// The factor on a quantity of `unit` (as [`crate::settings_keys::KeyDoc::unit`] writes
+    /// it: products of m, kg, s, N, W and rad with `·`, `/` and powers ², ³); `None` for a unit
+    /// that is not a physical dimension (`1`, `bool`, `count`, `steps`, an enum's "").
+    pub fn factor(&self, unit: &str) -> Option<f64> {
+        if matches!(unit, "1" | "bool" | "count" | "steps" | "") {
+            return None;
+        }
+        // Exponents of (length, mass, time).
+        let base = |symbol: &str| -> Option<[i32; 3]> {
+            Some(match symbol {
+                "m" => [1, 0, 0],
+                "kg" => [0, 1, 0],
+                "s" => [0, 0, 1],
+                "N" => [1, 1, -2],
+                "W" => [2, 1, -3],
+                "rad" | "1" => [0, 0, 0],
+                _ => return None,
+            })
+        };
+        let mut dim = [0i32; 3];
+        let mut sign = 1;
+        for (i, part) in unit.split('/').enumerate() {
+            if i > 0 {
+                sign = -1;
+            }
+            for factor in part.split('·') {
+                let (symbol, power) = match factor.strip_suffix('²') {
+                    Some(s) => (s, 2),
+                    None => match factor.strip_suffix('³') {
+                        Some(s) => (s, 3),
+                        None => (factor, 1),
+                    },
+                };
+                let d = base(symbol)?;
+                for k in 0..3 {
+                    dim[k] += sign * power * d[k];
+                }
+            }
+        }
+        let time = self.length.sqrt();
+        Some(self.length.powi(dim[0]) * self.mass.powi(dim[1]) * time.powi(dim[2]))
+    }
+}
+
 impl RobotConfig {
+    /// This robot's size against the A1's ([`RobotScale`]).
+    pub fn scale(&self) -> RobotScale {
+        let a1 = RobotConfig::a1();
+        let leg = |r: &RobotConfig| {
+            let [l1, l2] = r.leg_geometry(Leg::FrontLeft).segment_lengths_m();
+            l1 + l2
+        };
+        RobotScale {
+            length: leg(self) / leg(&a1),
+            mass: self.total_mass_kg() / a1.total_mass_kg(),
+        }
+    }
+
+    /// The scale the settings are given ([`ControlDefaults::scale_settings`]), `None` where
+    /// they are used as the files write them.
+    pub fn settings_scale(&self) -> Option<RobotScale> {
+        self.control
+            .scale_settings
+            .unwrap_or(self.model.is_some())
+            .then(|| self.scale())
+    }
+
     /// The A1 shipped with the project (`robots/a1.toml`).
     pub fn a1() -> Self {
         let config: RobotConfig = toml::from_str(A1_TOML).expect("robots/a1.toml parses");
@@ -374,8 +465,19 @@ impl RobotConfig {
         }
     }
 
-    /// Loads and validates a robot file; a value out of range is named with the file.
+    /// Loads and validates a robot file; a value out of range is named with the file. A file
+    /// that binds the robot to its own MuJoCo model (`[model]`) needs the model compiled:
+    /// `eemp_sim::robot_model::load_robot` reads both kinds.
     pub fn load(path: &std::path::Path) -> Result<Self, ConfigError> {
+        let value: toml::Table = crate::config_error::load_toml(path)?;
+        if value.contains_key("model") {
+            return Err(ConfigError::Invalid {
+                name: path.display().to_string(),
+                message: "binds the robot to its MuJoCo model ([model]): load it through \
+                          eemp_sim::robot_model::load_robot, which compiles the model"
+                    .into(),
+            });
+        }
         let config: RobotConfig = crate::config_error::load_toml(path)?;
         config.validate().map_err(|e| ConfigError::Invalid {
             name: path.display().to_string(),
@@ -485,6 +587,9 @@ impl RobotConfig {
 
     /// Joint range [min, max] of joint `j` (0 abduction, 1 thigh, 2 calf) of `leg`, rad.
     pub fn joint_range_rad(&self, leg: Leg, j: usize) -> [f64; 2] {
+        if let Some(m) = &self.model {
+            return m.joint_range_rad[leg][j];
+        }
         let l = &self.leg;
         match j {
             0 => l.abduction_range_rad,
@@ -586,6 +691,9 @@ impl RobotConfig {
 
     /// Standing joint angles for every leg.
     pub fn standing_pose(&self) -> LegMap<Vector3<f64>> {
+        if let Some(m) = &self.model {
+            return m.standing_pose_rad.clone();
+        }
         LegMap::splat(Vector3::from(self.leg.standing_pose_rad))
     }
 }

@@ -109,6 +109,38 @@ impl ControllerSettings {
         Ok(s)
     }
 
+    /// These settings scaled to a robot of `scale` ([`crate::robot::RobotScale`]): every key
+    /// of [`crate::settings_keys::KEYS`] with a physical unit, multiplied by its unit's factor
+    /// (a key left unset stays unset).
+    pub fn scaled(&self, scale: &crate::robot::RobotScale) -> Result<Self, String> {
+        let mut tree = self.to_tree();
+        for doc in crate::settings_keys::KEYS {
+            let Some(f) = scale.factor(doc.unit) else {
+                continue;
+            };
+            let mut at: Option<&mut Value> = None;
+            for (i, part) in doc.key.split('.').enumerate() {
+                at = match (i, at) {
+                    (0, _) => tree.get_mut(part),
+                    (_, Some(Value::Table(t))) => t.get_mut(part),
+                    _ => None,
+                };
+            }
+            match at {
+                Some(Value::Float(x)) => *x *= f,
+                Some(Value::Array(items)) => {
+                    for v in items {
+                        if let Value::Float(x) = v {
+                            *x *= f;
+                        }
+                    }
+                }
+                _ => {}
+            }
+        }
+        ControllerSettings::from_tree(&tree, "the settings scaled to the robot")
+    }
+
     /// These settings with each `key=value` of `sets` applied in order (dotted keys into the
     /// tree, a value in TOML syntax; a bare word is read as a string). Errors name the
     /// assignment, the key and what is allowed.

@@ -2,7 +2,6 @@
 //! Rust worker threads behind one `step` call, numpy arrays in and out. The gymnasium classes
 //! (`python/eemp/envs.py`) wrap it; a single environment is a batch of one.
 
-use eemp_core::robot::RobotConfig;
 use eemp_rl::config::{TaskKind, TrainConfig};
 use eemp_rl::env::{env_seed, random_actions, stepping_rate};
 use eemp_rl::train::{make_envs_with, parse_motion, AnyVecEnv};
@@ -101,7 +100,7 @@ pub fn build(
             c.task.name()
         )));
     }
-    let robot = RobotConfig::load_or_a1(robot).map_err(value_error)?;
+    let robot = eemp_sim::robot_model::load_robot_or_a1(robot).map_err(value_error)?;
     let m = if c.task != TaskKind::Imitation {
         None
     } else if let Some(p) = motion {

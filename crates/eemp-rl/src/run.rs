@@ -249,7 +249,8 @@ impl WalkDescription {
                 self.duration_s
             ));
         }
-        let robot = RobotConfig::load_or_a1(self.robot.as_deref()).map_err(|e| e.to_string())?;
+        let robot = eemp_sim::robot_model::load_robot_or_a1(self.robot.as_deref())
+            .map_err(|e| e.to_string())?;
         #[cfg(feature = "learning")]
         let driver = match driver {
             Driver::Policy(mut p) => {
@@ -380,6 +381,19 @@ impl WalkDescription {
         }
         spec.seed = self.sensing.seed;
         spec.state_source = self.sensing.source(&robot)?;
+        // Settings tuned on the A1 scaled to this robot, under the gait file's and before the
+        // robot file's, the scenario's and the run's own (`RobotConfig::settings_scale`).
+        if let Some(scale) = robot.settings_scale() {
+            let scaled = settings_of(&spec).scaled(&scale)?;
+            spec.planner = scaled.planner;
+            spec.controller = scaled.controller;
+            if let (Some(kf), Some(mine)) = (scaled.filter, spec.state_source.kf_config_mut()) {
+                *mine = kf;
+            }
+            if self.params.is_none() && params_table.is_none() {
+                spec.params = spec.params.scaled(&scale);
+            }
+        }
         spec.allow_robot_mismatch = self.allow_robot_mismatch;
         #[cfg(feature = "learning")]
         if let Driver::Policy(p) = &driver {

@@ -68,8 +68,36 @@ pub struct Simulation {
 /// Compiles the MuJoCo model of `robot` on a flat floor plus `extras`.
 pub fn build_model(robot: &RobotConfig, extras: &SceneExtras) -> Result<Arc<MjModel>, SimError> {
     let xml = robot_mjcf(robot, extras);
-    let model = MjModel::from_xml_string(&xml).map_err(|e| SimError::Model(e.to_string()))?;
+    let mut model = MjModel::from_xml_string(&xml).map_err(|e| SimError::Model(e.to_string()))?;
+    if let Some(m) = &robot.model {
+        apply_trunk_changes(&mut model, &robot.trunk, &m.compiled_trunk)?;
+    }
     Ok(Arc::new(model))
+}
+
+/// A robot read from its own model keeps the model's trunk inertial; a run's trunk-mass and
+/// -inertia errors and its payload (`trunk` against the `compiled` one) change it here, as the
+/// generated model writes them: mass added at the trunk's COM, inertia scaled.
+fn apply_trunk_changes(
+    model: &mut MjModel,
+    trunk: &eemp_core::robot::TrunkConfig,
+    compiled: &eemp_core::robot::TrunkConfig,
+) -> Result<(), SimError> {
+    if trunk == compiled {
+        return Ok(());
+    }
+    let body = id(model, MjtObjBase::mjOBJ_BODY, "body", "trunk")?;
+    let inertia_scale = trunk.inertia_kg_m2[0] / compiled.inertia_kg_m2[0];
+    // SAFETY: two plain arrays of the compiled model are written in place, within their sizes,
+    // before any data is made from it.
+    unsafe {
+        let m = model.ffi_mut();
+        *m.body_mass.add(body) += trunk.mass_kg - compiled.mass_kg;
+        for k in 0..3 {
+            *m.body_inertia.add(3 * body + k) *= inertia_scale;
+        }
+    }
+    Ok(())
 }
 
 fn id(

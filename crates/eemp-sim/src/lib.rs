@@ -3,6 +3,7 @@
 pub mod backend;
 pub mod closed_loop;
 pub mod mjcf;
+pub mod robot_model;
 pub mod scenario;
 pub mod sensors;
 pub mod stand;

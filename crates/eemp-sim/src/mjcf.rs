@@ -43,8 +43,69 @@ pub fn foot_geom_name(leg: Leg) -> String {
     format!("{}_foot", leg.short_name())
 }
 
-/// The MJCF text of `robot` standing on a flat floor, plus `extras`.
+const VISUAL: &str = r#"<visual><global offwidth="1280" offheight="720"/><quality shadowsize="1024" offsamples="0"/></visual>"#;
+const FLOOR_ASSETS: &str = r#"<texture name="floor_checker" type="2d" builtin="checker" width="256" height="256" rgb1="0.85 0.85 0.85" rgb2="0.62 0.62 0.68"/><material name="floor" texture="floor_checker" texrepeat="4 4" texuniform="true"/>"#;
+const SENSORS: &str = r#"  <sensor>
+    <framequat name="imu_quat" objtype="site" objname="imu"/>
+    <gyro name="imu_gyro" site="imu"/>
+    <accelerometer name="imu_accel" site="imu"/>
+  </sensor>
+"#;
+
+/// The light, floor and terrain of every scene (inside `<worldbody>`).
+fn world(robot: &RobotConfig, extras: &SceneExtras) -> String {
+    format!(
+        r#"    <light name="sun" pos="0 0 4" dir="0 0 -1" directional="true"/>
+    <geom name="floor" type="plane" size="0 0 0.05" pos="0 0 {floor_z}" contype="1" conaffinity="1" priority="1" condim="3" friction="{mu} 0.02 0.01" solimp="0.015 1 0.031" material="floor"/>
+{extras}"#,
+        floor_z = extras.floor_z_m,
+        mu = robot.simulation.floor_friction,
+        extras = extras.world_geoms_xml,
+    )
+}
+
+/// The scene of a robot read from its own model ([`crate::robot_model`]): its edited MJCF with
+/// the project's contact options, floor, terrain, IMU sensors and tracking camera added. The
+/// camera stands off by the robot's size (the A1's view scaled by its legs' length).
+fn model_scene(robot: &RobotConfig, mjcf: &str, extras: &SceneExtras) -> String {
+    // A motor-strength error: each motor a general actuator of gain k (see [`robot_mjcf`]).
+    let mjcf = match extras.motor_strength_scale {
+        Some(k) => mjcf.replace("<motor ", &format!(r#"<general gainprm="{k}" "#)),
+        None => mjcf.to_string(),
+    };
+    let mjcf = mjcf.as_str();
+    let [l1, l2] = robot.leg_geometry(Leg::FrontLeft).segment_lengths_m();
+    let k = (l1 + l2) / 0.4;
+    let camera = format!(
+        r#"
+      <camera name="track" mode="trackcom" pos="{} {} {}" xyaxes="1 0.25 0 -0.1 0.3 1"/>"#,
+        0.4 * k,
+        -1.6 * k,
+        0.5 * k
+    );
+    let trunk = mjcf
+        .find(r#"<body name="trunk""#)
+        .and_then(|i| mjcf[i..].find('>').map(|j| i + j + 1))
+        .expect("the bound model names its trunk");
+    let world_at = mjcf.find("<worldbody>").expect("an MJCF has a worldbody") + "<worldbody>".len();
+    let end = mjcf.rfind("</mujoco>").expect("an MJCF ends its root");
+
+    format!(
+        "{head}  {VISUAL}\n  <asset>{FLOOR_ASSETS}{assets}</asset>\n  <worldbody>\n{world}{before_trunk}{camera}{rest}{SENSORS}</mujoco>\n",
+        head = &mjcf[..world_at - "<worldbody>".len()],
+        assets = extras.assets_xml,
+        world = world(robot, extras),
+        before_trunk = &mjcf[world_at..trunk],
+        rest = &mjcf[trunk..end],
+    )
+}
+
+/// The MJCF text of `robot` standing on a flat floor, plus `extras`: its own model where it
+/// has one, else the one generated from its file.
 pub fn robot_mjcf(robot: &RobotConfig, extras: &SceneExtras) -> String {
+    if let Some(m) = &robot.model {
+        return model_scene(robot, &m.mjcf, extras);
+    }
     let l = &robot.leg;
     let s = &robot.simulation;
     let t = &robot.trunk;

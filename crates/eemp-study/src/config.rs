@@ -116,7 +116,7 @@ impl Grid {
     /// The robot of the runs (validated when the sweep file was read), with the grid's joint
     /// damping if it sets one.
     pub fn robot_config(&self) -> Result<eemp_core::robot::RobotConfig, String> {
-        let mut robot = eemp_core::robot::RobotConfig::load_or_a1(self.robot.as_deref())
+        let mut robot = eemp_sim::robot_model::load_robot_or_a1(self.robot.as_deref())
             .map_err(|e| e.to_string())?;
         if let Some(d) = self.joint_damping_nms {
             robot.leg.damping = d;
@@ -513,7 +513,7 @@ impl SweepConfig {
             }
         };
         if let Some(r) = &g.robot {
-            eemp_core::robot::RobotConfig::load(r)
+            eemp_sim::robot_model::load_robot(r)
                 .map_err(|e| v.error("grid.robot", e.to_string()))?;
         }
         let grid = Grid {

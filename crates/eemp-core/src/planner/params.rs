@@ -18,6 +18,14 @@ pub mod table_i {
 /// checked where the robot is known ([`crate::robot::RobotConfig::body_height_range_m`]).
 pub const BODY_HEIGHT_LIMITS_M: [f64; 2] = [0.05, 2.0];
 
+/// What any robot's swing time, step height and ellipse axes may be: plausibility bounds, as
+/// [`BODY_HEIGHT_LIMITS_M`]. Table I's ranges are the A1 paper's grid (the sweeps' and the
+/// residuals' ranges); a larger robot swings longer and steps higher
+/// ([`PlannerParams::scaled`]).
+pub const SWING_TIME_LIMITS_S: [f64; 2] = [0.05, 1.0];
+pub const STEP_HEIGHT_LIMITS_M: [f64; 2] = [0.005, 0.5];
+pub const ELLIPSE_AXIS_LIMITS_M: [f64; 2] = [0.005, 0.5];
+
 /// Planner parameters (the action of EEMP-RL, the grid of EEMP-Analytical).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -57,6 +65,19 @@ pub const TABLE_I_RANGES: [[f64; 2]; 5] = [
 ];
 
 impl PlannerParams {
+    /// These parameters on a robot of `scale` (lengths × λ, the swing time × √λ: equal Froude
+    /// number, [`crate::robot::RobotScale`]).
+    pub fn scaled(&self, scale: &crate::robot::RobotScale) -> Self {
+        let (l, t) = (scale.length, scale.length.sqrt());
+        PlannerParams {
+            swing_time_s: self.swing_time_s * t,
+            step_height_m: self.step_height_m * l,
+            body_height_m: self.body_height_m * l,
+            ellipse_rx_m: self.ellipse_rx_m * l,
+            ellipse_ry_m: self.ellipse_ry_m * l,
+        }
+    }
+
     /// The names of the parameters, in the order of [`PlannerParams::to_array`].
     pub const NAMES: [&'static str; 5] = [
         "swing_time_s",
@@ -128,39 +149,34 @@ impl PlannerParams {
         }
     }
 
-    /// Checks every parameter against Table I; the error names the parameter and its range.
+    /// Checks every parameter against its plausibility bounds (any robot's; the robot's own
+    /// reach is checked where the robot is known); the error names the parameter and its range.
     pub fn validate(&self) -> Result<(), ConfigError> {
-        use table_i::*;
-        check_range(
-            "swing_time_s (ΔT)",
-            self.swing_time_s,
-            SWING_TIME_S[0],
-            SWING_TIME_S[1],
-        )?;
-        check_range(
-            "step_height_m (h_step)",
-            self.step_height_m,
-            STEP_HEIGHT_M[0],
-            STEP_HEIGHT_M[1],
-        )?;
-        check_range(
-            "body_height_m (X_z)",
-            self.body_height_m,
-            BODY_HEIGHT_LIMITS_M[0],
-            BODY_HEIGHT_LIMITS_M[1],
-        )?;
-        check_range(
-            "ellipse_rx_m (r_x)",
-            self.ellipse_rx_m,
-            ELLIPSE_AXIS_M[0],
-            ELLIPSE_AXIS_M[1],
-        )?;
-        check_range(
-            "ellipse_ry_m (r_y)",
-            self.ellipse_ry_m,
-            ELLIPSE_AXIS_M[0],
-            ELLIPSE_AXIS_M[1],
-        )?;
+        for (name, v, [lo, hi]) in [
+            ("swing_time_s (ΔT)", self.swing_time_s, SWING_TIME_LIMITS_S),
+            (
+                "step_height_m (h_step)",
+                self.step_height_m,
+                STEP_HEIGHT_LIMITS_M,
+            ),
+            (
+                "body_height_m (X_z)",
+                self.body_height_m,
+                BODY_HEIGHT_LIMITS_M,
+            ),
+            (
+                "ellipse_rx_m (r_x)",
+                self.ellipse_rx_m,
+                ELLIPSE_AXIS_LIMITS_M,
+            ),
+            (
+                "ellipse_ry_m (r_y)",
+                self.ellipse_ry_m,
+                ELLIPSE_AXIS_LIMITS_M,
+            ),
+        ] {
+            check_range(name, v, lo, hi)?;
+        }
         Ok(())
     }
 }
