@@ -54,10 +54,15 @@ pub fn run(args: &StandArgs) -> Result<(), String> {
         ));
     }
     let robot = crate::robot_arg::load_robot(args.robot.as_deref())?;
-    let profile: BodyMotionProfile = match &args.profile {
-        Some(p) => load_toml(p).map_err(|e| e.to_string())?,
-        None => BodyMotionProfile::default(),
+    let scale = robot.settings_scale();
+    let profile: BodyMotionProfile = match (&args.profile, &scale) {
+        (Some(p), _) => load_toml(p).map_err(|e| e.to_string())?,
+        (None, Some(s)) => BodyMotionProfile::default().scaled(s),
+        (None, None) => BodyMotionProfile::default(),
     };
+    robot
+        .check_body_height("profile.height_m", profile.height_m)
+        .map_err(|e| e.to_string())?;
     profile.validate().map_err(|e| e.to_string())?;
     let mut pushes = Vec::new();
     if let Some(at) = args.push.push_at {
@@ -94,12 +99,15 @@ pub fn run(args: &StandArgs) -> Result<(), String> {
             "--set {s}: standing has no planner (planner.* is for eemp walk)"
         ));
     }
-    let settings = eemp_core::settings::ControllerSettings {
+    let mut settings = eemp_core::settings::ControllerSettings {
         planner: Default::default(),
         controller,
         filter: source.kf_config().cloned(),
+    };
+    if let Some(s) = &scale {
+        settings = settings.scaled(s)?;
     }
-    .with_sets(&args.set)?;
+    let settings = settings.with_sets(&args.set)?;
     let controller = settings.controller;
     if let (Some(kf), Some(mine)) = (settings.filter, source.kf_config_mut()) {
         *mine = kf;

@@ -43,11 +43,10 @@ pub struct RobotConfig {
 /// `eemp_sim::robot_model`, which compiles it; this crate never reads MJCF).
 #[derive(Clone, Debug, PartialEq)]
 pub struct ModelDescription {
-    /// The model file the binding names.
+    /// The model file the binding names (the simulation compiles it with [`Self::edits`]).
     pub source: std::path::PathBuf,
-    /// The robot's MJCF after the binding's edits (motors, passive terms, the project's names),
-    /// without floor, terrain or sensors; the simulation adds those.
-    pub mjcf: String,
+    /// What the binding changes in the model for torque control.
+    pub edits: ModelEdits,
     /// Each leg's geometry at zero joint angles.
     pub legs: LegMap<crate::kinematics::LegGeometry>,
     /// Each leg's links (abduction, thigh, calf: every body that moves with that joint), in the
@@ -60,8 +59,19 @@ pub struct ModelDescription {
     /// The trunk as compiled: a run's trunk-mass error or payload ([`RobotConfig::trunk`]
     /// changed) is applied to the compiled model against it.
     pub compiled_trunk: TrunkConfig,
-    /// Hash of the edited model's MJCF (the robot's id).
+    /// Hash of the edited model's arrays the dynamics depend on (the robot's id).
     pub digest: String,
+}
+
+/// What a binding changes in its model (`[model]` of a robot file): every leg joint's passive
+/// terms (abduction, thigh, calf; `None`: the model's own) and, where the model has none, the
+/// torque limits.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ModelEdits {
+    pub damping_n_m_s_per_rad: [f64; 3],
+    pub armature_kg_m2: Option<[f64; 3]>,
+    pub frictionloss_nm: Option<[f64; 3]>,
+    pub torque_limit_nm: Option<[f64; 3]>,
 }
 
 /// Mass, COM and inertia (about the COM) of a rigid part, in a named link frame.

@@ -75,12 +75,38 @@ impl Default for BodyMotionProfile {
 }
 
 impl BodyMotionProfile {
+    /// This profile on a robot of `scale`: heights and translations × λ, times × √λ (equal
+    /// Froude number, [`crate::robot::RobotScale`]).
+    pub fn scaled(&self, scale: &crate::robot::RobotScale) -> Self {
+        let (l, t) = (scale.length, scale.length.sqrt());
+        BodyMotionProfile {
+            height_m: self.height_m * l,
+            rise_s: self.rise_s * t,
+            segments: self
+                .segments
+                .iter()
+                .map(|s| MotionSegment {
+                    amplitude: match s.axis {
+                        Axis::X | Axis::Y | Axis::Z => s.amplitude * l,
+                        Axis::Roll | Axis::Pitch | Axis::Yaw => s.amplitude,
+                    },
+                    period_s: s.period_s * t,
+                    ..s.clone()
+                })
+                .collect(),
+        }
+    }
+
     pub fn validate(&self) -> Result<(), ConfigError> {
-        check_range("profile.height_m", self.height_m, 0.15, 0.36)?;
+        // Any robot's plausible height; the robot's own reach is checked where it is known
+        // (`RobotConfig::check_body_height`). Translations at most a fifth of the height
+        // (the A1's 6 cm at 0.30 m), so the bound grows with the robot.
+        let [lo, hi] = crate::planner::params::BODY_HEIGHT_LIMITS_M;
+        check_range("profile.height_m", self.height_m, lo, hi)?;
         check_range("profile.rise_s", self.rise_s, 0.1, 10.0)?;
         for (i, s) in self.segments.iter().enumerate() {
             let max = match s.axis {
-                Axis::X | Axis::Y | Axis::Z => 0.06,
+                Axis::X | Axis::Y | Axis::Z => 0.2 * self.height_m,
                 Axis::Roll | Axis::Pitch | Axis::Yaw => 0.4,
             };
             check_range(

@@ -68,10 +68,27 @@ pub struct Simulation {
 /// Compiles the MuJoCo model of `robot` on a flat floor plus `extras`.
 pub fn build_model(robot: &RobotConfig, extras: &SceneExtras) -> Result<Arc<MjModel>, SimError> {
     let xml = robot_mjcf(robot, extras);
-    let mut model = MjModel::from_xml_string(&xml).map_err(|e| SimError::Model(e.to_string()))?;
-    if let Some(m) = &robot.model {
-        apply_trunk_changes(&mut model, &robot.trunk, &m.compiled_trunk)?;
+    let Some(m) = &robot.model else {
+        let model =
+            MjModel::from_xml_string(&xml).map_err(|e| SimError::Model(e.to_string()))?;
+        return Ok(Arc::new(model));
+    };
+    // A robot read from its own model: its edited spec attached into the scene, compiled as
+    // one; no text round trip (MuJoCo's XML writer drops some default-class values).
+    let model_err = |e: &dyn std::fmt::Display| SimError::Model(e.to_string());
+    let (mut robot_spec, _) =
+        crate::robot_model::edited_spec(&m.source, &m.edits).map_err(|e| model_err(&e))?;
+    crate::robot_model::add_tracking_camera(&mut robot_spec, robot).map_err(|e| model_err(&e))?;
+    if let Some(k) = extras.motor_strength_scale {
+        crate::robot_model::scale_motor_strength(&mut robot_spec, k);
     }
+    let mut scene = MjSpec::from_xml_string(&xml).map_err(|e| model_err(&e))?;
+    scene
+        .world_body_mut()
+        .attach_by_deep_copy(&mut robot_spec, "", "")
+        .map_err(|e| model_err(&e))?;
+    let mut model = scene.compile().map_err(|e| model_err(&e))?;
+    apply_trunk_changes(&mut model, &robot.trunk, &m.compiled_trunk)?;
     Ok(Arc::new(model))
 }
 

@@ -64,47 +64,33 @@ fn world(robot: &RobotConfig, extras: &SceneExtras) -> String {
     )
 }
 
-/// The scene of a robot read from its own model ([`crate::robot_model`]): its edited MJCF with
-/// the project's contact options, floor, terrain, IMU sensors and tracking camera added. The
-/// camera stands off by the robot's size (the A1's view scaled by its legs' length).
-fn model_scene(robot: &RobotConfig, mjcf: &str, extras: &SceneExtras) -> String {
-    // A motor-strength error: each motor a general actuator of gain k (see [`robot_mjcf`]).
-    let mjcf = match extras.motor_strength_scale {
-        Some(k) => mjcf.replace("<motor ", &format!(r#"<general gainprm="{k}" "#)),
-        None => mjcf.to_string(),
-    };
-    let mjcf = mjcf.as_str();
-    let [l1, l2] = robot.leg_geometry(Leg::FrontLeft).segment_lengths_m();
-    let k = (l1 + l2) / 0.4;
-    let camera = format!(
-        r#"
-      <camera name="track" mode="trackcom" pos="{} {} {}" xyaxes="1 0.25 0 -0.1 0.3 1"/>"#,
-        0.4 * k,
-        -1.6 * k,
-        0.5 * k
-    );
-    let trunk = mjcf
-        .find(r#"<body name="trunk""#)
-        .and_then(|i| mjcf[i..].find('>').map(|j| i + j + 1))
-        .expect("the bound model names its trunk");
-    let world_at = mjcf.find("<worldbody>").expect("an MJCF has a worldbody") + "<worldbody>".len();
-    let end = mjcf.rfind("</mujoco>").expect("an MJCF ends its root");
-
+/// The scene around a robot read from its own model ([`crate::robot_model`]): the project's
+/// options, floor, terrain and IMU sensors, with no robot; the robot's edited model is
+/// attached into its world ([`crate::backend::build_model`]).
+pub fn scene_without_robot(robot: &RobotConfig, extras: &SceneExtras) -> String {
     format!(
-        "{head}  {VISUAL}\n  <asset>{FLOOR_ASSETS}{assets}</asset>\n  <worldbody>\n{world}{before_trunk}{camera}{rest}{SENSORS}</mujoco>\n",
-        head = &mjcf[..world_at - "<worldbody>".len()],
+        r#"<mujoco model="{name}">
+  <compiler angle="radian" autolimits="true"/>
+  <option timestep="{dt}" integrator="Euler" cone="elliptic" impratio="100"/>
+  {VISUAL}
+  <asset>{FLOOR_ASSETS}{assets}</asset>
+  <worldbody>
+{world}  </worldbody>
+{SENSORS}</mujoco>
+"#,
+        name = robot.name,
+        dt = robot.simulation.timestep_s,
         assets = extras.assets_xml,
         world = world(robot, extras),
-        before_trunk = &mjcf[world_at..trunk],
-        rest = &mjcf[trunk..end],
     )
 }
 
-/// The MJCF text of `robot` standing on a flat floor, plus `extras`: its own model where it
-/// has one, else the one generated from its file.
+/// The MJCF text of `robot` standing on a flat floor, plus `extras`, generated from its file.
+/// A robot read from its own model is compiled from that model instead
+/// ([`crate::backend::build_model`]); for it this is the scene without the robot.
 pub fn robot_mjcf(robot: &RobotConfig, extras: &SceneExtras) -> String {
-    if let Some(m) = &robot.model {
-        return model_scene(robot, &m.mjcf, extras);
+    if robot.model.is_some() {
+        return scene_without_robot(robot, extras);
     }
     let l = &robot.leg;
     let s = &robot.simulation;

@@ -22,7 +22,8 @@ use eemp_core::energy::MotorConfig;
 use eemp_core::kinematics::LegGeometry;
 use eemp_core::leg::{Leg, LegMap};
 use eemp_core::robot::{
-    fnv1a64, ControlDefaults, LegConfig, LinkConfig, LinkInertial, ModelDescription, RobotConfig,
+    fnv1a64, ControlDefaults, LegConfig, LinkConfig, LinkInertial, ModelDescription, ModelEdits,
+    RobotConfig,
     SdkConfig, SimulationConfig, TrunkConfig,
 };
 use mujoco_rs::prelude::*;
@@ -117,21 +118,38 @@ struct FoundLeg {
 /// Compiles `binding`'s model with the edits the module doc lists and reads the robot from it.
 pub fn bind(binding: &RobotBinding, dir: &Path) -> Result<RobotConfig, ConfigError> {
     let file = dir.join(&binding.model.file);
+    let source = std::fs::canonicalize(&file)
+        .map_err(|e| invalid("model.file", format!("{}: {e}", file.display())))?;
+    let m = &binding.model;
+    let edits = ModelEdits {
+        damping_n_m_s_per_rad: m.damping,
+        armature_kg_m2: m.armature_kg_m2,
+        frictionloss_nm: m.frictionloss_nm,
+        torque_limit_nm: m.torque_limit_nm,
+    };
+    let (mut spec, limits) = edited_spec(&source, &edits)?;
+    let model = spec
+        .compile()
+        .map_err(|e| invalid("model.file", format!("{}: {e}", source.display())))?;
+    describe(binding, source, edits, &model, &limits)
+}
+
+/// The robot's model as the simulation runs it: `source` parsed, the visual meshes stripped,
+/// the project's names, motors and passive terms put in (the module doc); with the torque
+/// limits (abduction, thigh, calf) its motors were given.
+pub fn edited_spec(source: &Path, edits: &ModelEdits) -> Result<(MjSpec, [f64; 3]), ConfigError> {
     let model_err =
-        |e: &dyn std::fmt::Display| invalid("model.file", format!("{}: {e}", file.display()));
-    let mut spec = MjSpec::from_xml(&file).map_err(|e| model_err(&e))?;
-    strip_visual_meshes(&mut spec, file.parent().unwrap_or(Path::new(".")))
+        |e: &dyn std::fmt::Display| invalid("model.file", format!("{}: {e}", source.display()));
+    let mut spec = MjSpec::from_xml(source).map_err(|e| model_err(&e))?;
+    strip_visual_meshes(&mut spec, source.parent().unwrap_or(Path::new(".")))
         .map_err(|m| invalid("model.file", m))?;
     // The model as shipped (less its visuals): its actuators say the torque limits.
     let original = spec.compile().map_err(|e| model_err(&e))?;
     let (trunk, legs) = find_legs(&original)?;
-    let limits = torque_limits(&original, &legs, binding.model.torque_limit_nm)?;
-
-    rename_and_motorise(&mut spec, &original, trunk, &legs, binding, &limits)
+    let limits = torque_limits(&original, &legs, edits.torque_limit_nm)?;
+    rename_and_motorise(&mut spec, &original, trunk, &legs, edits, &limits)
         .map_err(|m| invalid("model.file", m))?;
-    let model = spec.compile().map_err(|e| model_err(&e))?;
-    let mjcf = spec.save_xml_string(1 << 22).map_err(|e| model_err(&e))?;
-    describe(binding, &file, mjcf, &model, &limits)
+    Ok((spec, limits))
 }
 
 /// Removes the mesh geoms that do not collide (visuals), the meshes no geom uses any more,
@@ -403,7 +421,7 @@ fn rename_and_motorise(
     model: &MjModel,
     trunk: usize,
     legs: &LegMap<FoundLeg>,
-    binding: &RobotBinding,
+    edits: &ModelEdits,
     limits: &[f64; 3],
 ) -> Result<(), String> {
     let named = |kind: MjtObjBase, id: usize| -> Result<String, String> {
@@ -476,6 +494,7 @@ fn rename_and_motorise(
     if let Some(site) = spec.site_mut("imu") {
         site.set_name("model_imu").map_err(|e| e.to_string())?;
     }
+    let mut added_trunk_box = false;
     {
         let body = spec.body_mut("trunk").ok_or("trunk body lost")?;
         body.add_site().with_name("imu");
@@ -498,7 +517,7 @@ fn rename_and_motorise(
             }
             // A trunk that collides with nothing would sink through the floor in a fall: it
             // gets its inertia's box (the uniform box of its mass and principal moments),
-            // massless, as its collision shape.
+            // massless, as its collision shape, kept off the legs (below) as the model had it.
             None => {
                 let i = model.body_inertia()[trunk];
                 let m = model.body_mass()[trunk];
@@ -520,6 +539,16 @@ fn rename_and_motorise(
                 *geom.size_mut() = size;
                 *geom.pos_mut() = ipos;
                 *geom.quat_mut() = iquat;
+                added_trunk_box = true;
+            }
+        }
+    }
+    if added_trunk_box {
+        for leg in Leg::ALL {
+            for link in JOINTS {
+                let e = spec.add_exclude();
+                e.set_bodyname1("trunk");
+                e.set_bodyname2(&format!("{}_{link}", leg.short_name()));
             }
         }
     }
@@ -541,7 +570,7 @@ fn rename_and_motorise(
             .with_pos(pos);
     }
     // Passive terms of every leg joint.
-    let m = &binding.model;
+    let m = edits;
     for leg in Leg::ALL {
         for (k, j) in JOINTS.iter().enumerate() {
             let joint = spec
@@ -549,7 +578,7 @@ fn rename_and_motorise(
                 .ok_or("leg joint lost")?;
             let mut damping = *joint.damping();
             damping.fill(0.0);
-            damping[0] = m.damping[k];
+            damping[0] = m.damping_n_m_s_per_rad[k];
             *joint.damping_mut() = damping;
             if let Some(a) = m.armature_kg_m2 {
                 joint.set_armature(a[k]);
@@ -585,9 +614,28 @@ fn rename_and_motorise(
         // SAFETY: deleted once; no handle outlives the call.
         unsafe { k.delete() }.map_err(|e| e.to_string())?;
     }
-    let opt = spec.option_mut();
-    opt.timestep = binding.simulation.timestep_s;
     Ok(())
+}
+
+/// The camera videos follow the robot with: the A1's view scaled by the robot's leg length.
+pub fn add_tracking_camera(spec: &mut MjSpec, robot: &RobotConfig) -> Result<(), String> {
+    let [l1, l2] = robot.leg_geometry(Leg::FrontLeft).segment_lengths_m();
+    let k = (l1 + l2) / 0.4;
+    let trunk = spec.body_mut("trunk").ok_or("trunk body lost")?;
+    let camera = trunk.add_camera();
+    camera.set_name("track").map_err(|e| e.to_string())?;
+    camera.set_mode(MjtCamLight::mjCAMLIGHT_TRACKCOM);
+    *camera.pos_mut() = [0.4 * k, -1.6 * k, 0.5 * k];
+    camera.alt_mut().set_xy_axis(&[1.0, 0.25, 0.0, -0.1, 0.3, 1.0]);
+    Ok(())
+}
+
+/// A motor-strength error: every motor's gain k (MuJoCo's actuator force k·ctrl), as the
+/// generated model writes it.
+pub fn scale_motor_strength(spec: &mut MjSpec, k: f64) {
+    for a in spec.actuator_iter_mut() {
+        a.gainprm_mut()[0] = k;
+    }
 }
 
 fn set_name(spec: &mut MjSpec, kind: MjtObjBase, from: &str, to: &str) -> Result<(), String> {
@@ -655,8 +703,8 @@ fn combine(
 /// Reads the robot from the edited, compiled model.
 fn describe(
     binding: &RobotBinding,
-    file: &Path,
-    mjcf: String,
+    source: PathBuf,
+    edits: ModelEdits,
     model: &MjModel,
     limits: &[f64; 3],
 ) -> Result<RobotConfig, ConfigError> {
@@ -770,11 +818,7 @@ fn describe(
         thigh_link: link(1),
         calf_link: link(2),
     };
-    // The mesh files' folder is this checkout's: out of the id, which must not depend on it.
-    let folder = std::fs::canonicalize(file.parent().unwrap_or(Path::new(".")))
-        .map(|d| d.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let digest = format!("{:016x}", fnv1a64(&mjcf.replace(&folder, "")));
+    let digest = format!("{:016x}", fnv1a64(&model_arrays(model)));
     let trunk_config = TrunkConfig {
         mass_kg: t.mass_kg,
         com_m: t.com_m.into(),
@@ -782,8 +826,8 @@ fn describe(
         collision_half_size_m: [0.0; 3],
     };
     let description = ModelDescription {
-        source: file.to_path_buf(),
-        mjcf,
+        source,
+        edits,
         legs: LegMap(<[LegGeometry; 4]>::try_from(geometry).expect("four legs")),
         links: LegMap(<[[LinkInertial; 3]; 4]>::try_from(links).expect("four legs")),
         joint_range_rad: LegMap(<[[[f64; 2]; 3]; 4]>::try_from(ranges).expect("four legs")),
@@ -803,6 +847,28 @@ fn describe(
     };
     robot.validate()?;
     Ok(robot)
+}
+
+/// The compiled arrays the simulated dynamics depend on, as text (the robot's id hashes it;
+/// no path of this checkout is in it).
+fn model_arrays(model: &MjModel) -> String {
+    format!(
+        "{:?}{:?}{:?}{:?}{:?}{:?}{:?}{:?}{:?}{:?}{:?}{:?}{:?}{:?}",
+        model.body_parentid(),
+        model.body_pos(),
+        model.body_quat(),
+        model.body_mass(),
+        model.body_ipos(),
+        model.body_iquat(),
+        model.body_inertia(),
+        model.jnt_axis(),
+        model.jnt_range(),
+        model.dof_damping(),
+        model.dof_armature(),
+        model.dof_frictionloss(),
+        model.geom_size(),
+        model.actuator_ctrlrange(),
+    )
 }
 
 fn is_in_subtree(model: &MjModel, mut b: usize, root: usize) -> bool {

@@ -42,29 +42,50 @@ fn set_pose(
     sim.data_mut().forward();
 }
 
+/// Every robot the project ships, typed into its file or read from its own model.
+const SHIPPED_ROBOTS: [&str; 8] = [
+    "a1",
+    "go1",
+    "go2",
+    "b2",
+    "aliengo",
+    "a2",
+    "mini_cheetah",
+    "spot",
+];
+
 #[test]
-fn foot_positions_and_jacobians_match_mujoco() {
-    let robot = RobotConfig::a1();
-    let kin = LegKinematics::new(&robot);
-    let mut sim = Simulation::new(&robot, &SceneExtras::default()).unwrap();
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
-    let mut worst = (0.0f64, 0.0f64);
-    for _ in 0..200 {
-        let (p, r, q) = random_pose(&mut rng);
-        set_pose(&mut sim, p, r, &q);
-        let feet = sim.foot_positions_world();
-        for leg in Leg::ALL {
-            let core = p + r * kin.foot_position_body(leg, &q[leg]);
-            worst.0 = worst.0.max((core - feet[leg]).norm());
-            let jac_core_world =
-                r.to_rotation_matrix().matrix() * kin.foot_jacobian_body(leg, &q[leg]);
-            worst.1 = worst
-                .1
-                .max((jac_core_world - sim.foot_jacobian_world(leg)).abs().max());
+fn foot_positions_and_jacobians_match_mujoco_on_every_shipped_robot() {
+    for name in SHIPPED_ROBOTS {
+        let robot = robot_file(name);
+        let kin = LegKinematics::new(&robot);
+        let mut sim = Simulation::new(&robot, &SceneExtras::default()).unwrap();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        let mut worst = (0.0f64, 0.0f64);
+        for _ in 0..200 {
+            let (p, r, _) = random_pose(&mut rng);
+            // Anywhere in the joint ranges.
+            let q = LegMap::from_fn(|leg| {
+                Vector3::from_fn(|j, _| {
+                    let [lo, hi] = robot.joint_range_rad(leg, j);
+                    rng.random_range(lo.max(-3.0)..hi.min(3.0))
+                })
+            });
+            set_pose(&mut sim, p, r, &q);
+            let feet = sim.foot_positions_world();
+            for leg in Leg::ALL {
+                let core = p + r * kin.foot_position_body(leg, &q[leg]);
+                worst.0 = worst.0.max((core - feet[leg]).norm());
+                let jac_core_world =
+                    r.to_rotation_matrix().matrix() * kin.foot_jacobian_body(leg, &q[leg]);
+                worst.1 = worst
+                    .1
+                    .max((jac_core_world - sim.foot_jacobian_world(leg)).abs().max());
+            }
         }
+        assert!(worst.0 < 1e-9, "{name}: worst foot position error {} m", worst.0);
+        assert!(worst.1 < 1e-9, "{name}: worst Jacobian entry error {}", worst.1);
     }
-    assert!(worst.0 < 1e-9, "worst foot position error {} m", worst.0);
-    assert!(worst.1 < 1e-9, "worst Jacobian entry error {}", worst.1);
 }
 
 #[test]
@@ -139,24 +160,43 @@ fn leg_dynamics_match_mujoco_inverse_dynamics() {
 }
 
 #[test]
-fn composite_body_matches_mujoco_mass_and_com() {
-    let robot = RobotConfig::a1();
-    let mut sim = Simulation::new(&robot, &SceneExtras::default()).unwrap();
-    let q = robot.standing_pose();
-    sim.reset(Vector3::new(0.0, 0.0, 1.0), &q);
-    let body = robot.composite_body(&q);
-    let com_world = sim.data().subtree_com()[1];
-    let expected = Vector3::new(0.0, 0.0, 1.0) + body.com_body;
-    assert!(
-        (Vector3::from(com_world) - expected).norm() < 1e-9,
-        "MuJoCo COM {com_world:?} vs core {expected:?}"
-    );
-    let mujoco_mass: f64 = sim.data().model().body_mass().iter().sum();
-    assert!(
-        (mujoco_mass - body.mass_kg).abs() < 1e-9,
-        "mass {mujoco_mass} vs {}",
-        body.mass_kg
-    );
+fn composite_body_matches_mujoco_mass_com_and_inertia_on_every_shipped_robot() {
+    for name in SHIPPED_ROBOTS {
+        let robot = robot_file(name);
+        let mut sim = Simulation::new(&robot, &SceneExtras::default()).unwrap();
+        let q = robot.standing_pose();
+        sim.reset(Vector3::new(0.0, 0.0, 1.0), &q);
+        let body = robot.composite_body(&q);
+        let trunk = sim.data().model().name_to_id(mujoco_rs::prelude::MjtObjBase::mjOBJ_BODY, "trunk").unwrap();
+        let com_world = sim.data().subtree_com()[trunk];
+        let expected = Vector3::new(0.0, 0.0, 1.0) + body.com_body;
+        assert!(
+            (Vector3::from(com_world) - expected).norm() < 1e-9,
+            "{name}: MuJoCo COM {com_world:?} vs core {expected:?}"
+        );
+        let mujoco_mass = sim.data().model().body_subtreemass()[trunk];
+        assert!(
+            (mujoco_mass - body.mass_kg).abs() < 1e-9 && (robot.total_mass_kg() - body.mass_kg).abs() < 1e-9,
+            "{name}: mass {mujoco_mass} vs {}",
+            body.mass_kg
+        );
+        // Second method for the inertia about the COM: Σ over bodies of R I Rᵀ + m (|d|² − d dᵀ)
+        // from MuJoCo's own body frames at this pose.
+        let (data, model) = (sim.data(), sim.data().model());
+        let mut inertia = nalgebra::Matrix3::zeros();
+        for b in 1..model.ffi().nbody as usize {
+            let x = data.ximat()[b];
+            let rot = nalgebra::Matrix3::new(x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], x[8]);
+            let i = rot * nalgebra::Matrix3::from_diagonal(&Vector3::from(model.body_inertia()[b])) * rot.transpose();
+            let d = Vector3::from(data.xipos()[b]) - Vector3::from(com_world);
+            inertia += i + model.body_mass()[b] * (nalgebra::Matrix3::identity() * d.dot(&d) - d * d.transpose());
+        }
+        assert!(
+            (inertia - body.inertia_body).abs().max() < 1e-9,
+            "{name}: inertia {inertia} vs core {}",
+            body.inertia_body
+        );
+    }
 }
 
 #[test]
@@ -260,7 +300,7 @@ fn robot_file(name: &str) -> RobotConfig {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../../robots")
         .join(format!("{name}.toml"));
-    RobotConfig::load(&path).unwrap()
+    eemp_sim::robot_model::load_robot(&path).unwrap()
 }
 
 #[test]
