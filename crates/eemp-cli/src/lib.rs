@@ -21,6 +21,7 @@ pub mod reproduce_cmd;
 pub mod rerun_arg;
 pub mod retarget_cmd;
 pub mod robot_arg;
+pub mod robot_cmd;
 pub mod sensitivity_report;
 pub mod stand_cmd;
 pub mod state_source_arg;

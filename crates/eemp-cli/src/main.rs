@@ -87,6 +87,11 @@ enum Command {
         #[command(subcommand)]
         what: BenchCommand,
     },
+    /// Robots: `eemp robot check ROBOT` reads one, checks it against MuJoCo, stands and trots it.
+    Robot {
+        #[command(subcommand)]
+        what: eemp_cli::robot_cmd::RobotCommand,
+    },
     /// Controller settings: `eemp config show` prints those a walk would run with.
     Config {
         #[command(subcommand)]
@@ -161,6 +166,7 @@ fn main() {
         Command::Stand(args) => stand_cmd::run(&args),
         Command::Walk(args) => walk_cmd::run(&args),
         Command::Config { what } => config_cmd::run(&what),
+        Command::Robot { what } => eemp_cli::robot_cmd::run(&what),
         Command::Sweep(args) => sweep_cmd::run(&args),
         #[cfg(feature = "learning")]
         Command::Train(args) => train_cmd::run(&args),

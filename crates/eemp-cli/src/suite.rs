@@ -211,6 +211,10 @@ pub struct SuiteConfig {
     /// Run tables and policies made for another robot (an experiment).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub allow_robot_mismatch: bool,
+    /// Command every robot at the A1's Froude numbers: each `speeds_mps` × √λ, λ the robot's
+    /// leg length over the A1's (`RobotConfig::scale`), so one suite file checks any robot.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub speeds_scale_with_robot: bool,
 }
 
 fn default_duration() -> f64 {
@@ -508,9 +512,21 @@ impl SuiteConfig {
     }
 
     pub fn runs(&self) -> Result<Vec<SuiteRun>, String> {
+        let factor = match self.speeds_scale_with_robot {
+            true => crate::robot_arg::load_robot(self.robot.as_deref())?
+                .scale()
+                .length
+                .sqrt(),
+            false => 1.0,
+        };
         let mut runs = Vec::new();
         for (si, s) in self.scenarios.iter().enumerate() {
             for v in s.speeds()? {
+                // Rounded to the millimetre per second the run ids and tables print.
+                let v = match self.speeds_scale_with_robot {
+                    true => (v * factor * 1000.0).round() / 1000.0,
+                    false => v,
+                };
                 for mi in 0..self.methods.len() {
                     for &seed in &self.seeds {
                         runs.push(SuiteRun {

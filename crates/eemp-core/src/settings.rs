@@ -25,6 +25,12 @@ use toml::Value;
 /// The tables of the settings tree, in the order `eemp config show` prints them.
 pub const TABLES: [&str; 6] = ["planner", "mpc", "swing", "slip", "schedule", "filter"];
 
+/// Keys [`ControllerSettings::scaled`] leaves as they are, though they have a unit: how often
+/// the MPC solves is a control rate, not a property of the robot's motion. Slowed by √λ for a
+/// larger robot it let Spot's trunk (light in roll for its size) oscillate off its feet in
+/// 0.5 s of standing; kept at the A1's, Spot stands and walks.
+pub const UNSCALED_KEYS: [&str; 1] = ["schedule.mpc_period_s"];
+
 /// The settings a run controls itself with: planner, controller, and (on the filter) the
 /// filter's.
 #[derive(Clone, Debug, PartialEq)]
@@ -115,6 +121,9 @@ impl ControllerSettings {
     pub fn scaled(&self, scale: &crate::robot::RobotScale) -> Result<Self, String> {
         let mut tree = self.to_tree();
         for doc in crate::settings_keys::KEYS {
+            if UNSCALED_KEYS.contains(&doc.key) {
+                continue;
+            }
             let Some(f) = scale.factor(doc.unit) else {
                 continue;
             };

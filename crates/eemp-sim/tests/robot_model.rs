@@ -70,3 +70,11 @@ fn debug_print() {
     println!("{:?}\n{:?}\nmass {}", r.leg, r.trunk, r.total_mass_kg());
     for leg in Leg::ALL { println!("{leg:?} {:?} {:?}", r.leg_geometry(leg), r.joint_ranges_rad(leg)); }
 }
+
+#[test]
+fn debug_spot_excludes() {
+    let r = load_robot(&repo("robots/spot.toml")).unwrap();
+    let sim = eemp_sim::Simulation::new(&r, &Default::default()).unwrap();
+    let m = sim.data().model();
+    println!("nexclude {} ngeom {} nbody {}", m.ffi().nexclude, m.ffi().ngeom, m.ffi().nbody);
+}

@@ -29,7 +29,7 @@ pub fn walk_spec(
     estimator: SweepEstimator,
     mpc_weights: &MpcWeights,
     robot: &RobotConfig,
-) -> WalkSpec {
+) -> Result<WalkSpec, String> {
     let p = &spec.point;
     let mut walk = WalkSpec::constant(
         PlannerConfig {
@@ -45,11 +45,26 @@ pub fn walk_spec(
         p.duration_s,
     );
     walk.seed = spec.seed;
-    mpc_weights.apply(&mut walk.controller.mpc);
     if estimator == SweepEstimator::Kf {
         walk.state_source = StateSource::kf(robot, SensorNoise::default(), spec.seed);
     }
-    walk
+    // Settings tuned on the A1 scaled to the robot, as a walk's are (`RobotConfig::settings_scale`);
+    // the grid's own values (its parameters, its MPC weights) are the sweep's, not scaled.
+    if let Some(scale) = robot.settings_scale() {
+        let settings = eemp_core::settings::ControllerSettings {
+            planner: walk.planner.clone(),
+            controller: walk.controller.clone(),
+            filter: walk.state_source.kf_config().cloned(),
+        };
+        let s = settings.scaled(&scale)?;
+        walk.planner = s.planner;
+        walk.controller = s.controller;
+        if let (Some(kf), Some(mine)) = (s.filter, walk.state_source.kf_config_mut()) {
+            *mine = kf;
+        }
+    }
+    mpc_weights.apply(&mut walk.controller.mpc);
+    Ok(walk)
 }
 
 /// The runner `eemp sweep` uses: each run in MuJoCo, with the grid's progress factors,
@@ -90,7 +105,10 @@ pub fn simulate_on(
     estimator: SweepEstimator,
     mpc_weights: &MpcWeights,
 ) -> RunOutcome {
-    let walk = walk_spec(spec, factors, estimator, mpc_weights, robot);
+    let walk = match walk_spec(spec, factors, estimator, mpc_weights, robot) {
+        Ok(w) => w,
+        Err(e) => return RunOutcome::failed(e),
+    };
     match run_walk(robot, &walk, |_| {}) {
         Ok(run) => outcome_of(&run, walk.metrics_start_s),
         Err(e) => RunOutcome::failed(e.to_string()),
@@ -419,19 +437,19 @@ mod tests {
         let robot = RobotConfig::a1();
         let gt = SweepEstimator::GroundTruth;
         let w = MpcWeights::default();
-        let walk = walk_spec(&spec(Gait::Walk), &factors, gt, &w, &robot);
+        let walk = walk_spec(&spec(Gait::Walk), &factors, gt, &w, &robot).unwrap();
         assert_eq!(walk.planner.progress_factor, 1.5);
         assert_eq!(walk.planner.gait, Gait::Walk);
         assert_eq!(walk.seed, 7);
         assert_eq!(walk.state_source, StateSource::GroundTruth);
         assert_eq!(
-            walk_spec(&spec(Gait::Trot), &factors, gt, &w, &robot)
+            walk_spec(&spec(Gait::Trot), &factors, gt, &w, &robot).unwrap()
                 .planner
                 .progress_factor,
             0.5
         );
         // On the filter, the sensor noise is seeded by the run's seed.
-        let kf = walk_spec(&spec(Gait::Trot), &factors, SweepEstimator::Kf, &w, &robot);
+        let kf = walk_spec(&spec(Gait::Trot), &factors, SweepEstimator::Kf, &w, &robot).unwrap();
         match kf.state_source {
             StateSource::Kf { seed, .. } => assert_eq!(seed, 7),
             other => panic!("expected the Kalman filter, got {other:?}"),
@@ -446,7 +464,7 @@ mod tests {
             force: Some(1e-3),
             ..Default::default()
         };
-        let mpc = walk_spec(&spec(Gait::Trot), &factors, gt, &heavy, &robot)
+        let mpc = walk_spec(&spec(Gait::Trot), &factors, gt, &heavy, &robot).unwrap()
             .controller
             .mpc;
         let d = eemp_core::convex_mpc::MpcConfig::default();

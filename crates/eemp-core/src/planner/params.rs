@@ -25,6 +25,9 @@ pub const BODY_HEIGHT_LIMITS_M: [f64; 2] = [0.05, 2.0];
 pub const SWING_TIME_LIMITS_S: [f64; 2] = [0.05, 1.0];
 pub const STEP_HEIGHT_LIMITS_M: [f64; 2] = [0.005, 0.5];
 pub const ELLIPSE_AXIS_LIMITS_M: [f64; 2] = [0.005, 0.5];
+/// The speeds a per-speed table may list, m/s (Table I's 0.05–1 m/s scaled to a large robot
+/// goes past 1).
+pub const TABLE_SPEED_LIMITS_MPS: [f64; 2] = [0.01, 5.0];
 
 /// Planner parameters (the action of EEMP-RL, the grid of EEMP-Analytical).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]

@@ -158,6 +158,21 @@ impl ParamsTable {
         toml::to_string(self).expect("a table serialises")
     }
 
+    /// This table carried to a robot of `scale`, stamped `robot`: speeds × √λ, every entry's
+    /// parameters scaled ([`super::PlannerParams::scaled`]), its measured CoT and
+    /// manipulability dropped (they were the other robot's). A first table, not a selection.
+    pub fn scaled(&self, scale: &crate::robot::RobotScale, robot: crate::robot::RobotId) -> Self {
+        ParamsTable {
+            robot: Some(robot),
+            entries: self
+                .entries
+                .iter()
+                .map(|e| TableEntry::new(e.speed_mps * scale.length.sqrt(), &e.params().scaled(scale)))
+                .collect(),
+            ..self.clone()
+        }
+    }
+
     pub fn validate(&self) -> Result<(), ConfigError> {
         if let Some(f) = self.progress_factor {
             let [lo, hi] = super::PROGRESS_FACTOR_RANGE;
@@ -169,7 +184,7 @@ impl ParamsTable {
                 message: "has no [[entry]]".into(),
             });
         }
-        let [lo, hi] = super::params::table_i::SPEED_MPS;
+        let [lo, hi] = super::params::TABLE_SPEED_LIMITS_MPS;
         for (i, e) in self.entries.iter().enumerate() {
             check_range(&format!("entry[{i}].speed_mps"), e.speed_mps, lo, hi)?;
             e.params().validate().map_err(|err| ConfigError::Invalid {
