@@ -97,7 +97,8 @@ enum Command {
         #[command(subcommand)]
         what: config_cmd::ConfigCommand,
     },
-    /// Print the MuJoCo model (MJCF) generated from the robot file.
+    /// Print the MuJoCo model (MJCF) of the robot: generated from a typed robot file, or a bound
+    /// model as the simulation compiles it.
     Model {
         /// Robot description (default: the shipped A1, robots/a1.toml).
         #[arg(long)]
@@ -285,7 +286,21 @@ fn main() {
                 None => Default::default(),
             };
             let (robot, scene) = scenario.simulated_world(&robot);
-            print!("{}", eemp_sim::mjcf::robot_mjcf(&robot, &scene));
+            if robot.model.is_none() {
+                print!("{}", eemp_sim::mjcf::robot_mjcf(&robot, &scene));
+                return Ok(());
+            }
+            // A bound model: the scene as MuJoCo writes it back (its writer may leave out some
+            // default-class values; the simulation compiles the spec itself, not this text).
+            let mut spec =
+                eemp_sim::backend::bound_scene_spec(&robot, &scene).map_err(|e| e.to_string())?;
+            spec.compile().map_err(|e| e.to_string())?;
+            print!(
+                "<!-- {}: the robot's own model as the simulation compiles it, written back by \
+                 MuJoCo (which may drop some default-class values) -->\n{}",
+                robot.name,
+                spec.save_xml_string(1 << 22).map_err(|e| e.to_string())?
+            );
             Ok(())
         })(),
     };

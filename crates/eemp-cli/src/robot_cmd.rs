@@ -70,7 +70,9 @@ pub fn kinematics_error(robot: &RobotConfig, poses: usize) -> Result<(f64, f64),
             let core = p + r * kin.foot_position_body(leg, &q[leg]);
             worst.0 = worst.0.max((core - feet[leg]).norm());
             let jac = r.to_rotation_matrix().matrix() * kin.foot_jacobian_body(leg, &q[leg]);
-            worst.1 = worst.1.max((jac - sim.foot_jacobian_world(leg)).abs().max());
+            worst.1 = worst
+                .1
+                .max((jac - sim.foot_jacobian_world(leg)).abs().max());
         }
     }
     Ok(worst)
@@ -181,14 +183,25 @@ fn check(args: &RobotCheckArgs) -> Result<(), String> {
     let m = robot.model.as_ref();
     writeln!(r, "# Robot check: {}\n", robot.name).unwrap();
     match m {
-        Some(m) => writeln!(r, "Read from its own MuJoCo model `{}`.\n", m.source.display()),
-        None => writeln!(r, "Typed into its robot file (the model is generated from it).\n"),
+        Some(m) => writeln!(
+            r,
+            "Read from its own MuJoCo model `{}`.\n",
+            m.source.display()
+        ),
+        None => writeln!(
+            r,
+            "Typed into its robot file (the model is generated from it).\n"
+        ),
     }
     .unwrap();
     writeln!(r, "## What was found\n").unwrap();
     writeln!(r, "| quantity | value |\n|---|---|").unwrap();
     writeln!(r, "| total mass | {:.3} kg |", robot.total_mass_kg()).unwrap();
-    writeln!(r, "| standing height (trunk origin, standing pose) | {height:.3} m |").unwrap();
+    writeln!(
+        r,
+        "| standing height (trunk origin, standing pose) | {height:.3} m |"
+    )
+    .unwrap();
     writeln!(r, "| leg length over the A1's, λ | {:.4} |", scale.length).unwrap();
     writeln!(r, "| mass over the A1's, μ | {:.4} |", scale.mass).unwrap();
     writeln!(
@@ -198,10 +211,14 @@ fn check(args: &RobotCheckArgs) -> Result<(), String> {
     )
     .unwrap();
     writeln!(r, "| foot radius | {} m |", robot.leg.foot_radius_m).unwrap();
-    writeln!(r, "| settings | {} |", match robot.settings_scale() {
-        Some(_) => "the A1's scaled by unit at equal Froude number",
-        None => "as the files write them (not scaled)",
-    })
+    writeln!(
+        r,
+        "| settings | {} |",
+        match robot.settings_scale() {
+            Some(_) => "the A1's scaled by unit at equal Froude number",
+            None => "as the files write them (not scaled)",
+        }
+    )
     .unwrap();
     writeln!(
         r,
@@ -220,7 +237,11 @@ fn check(args: &RobotCheckArgs) -> Result<(), String> {
             a.y,
             a.z,
             g.axis_sign,
-            if g.knee_branch < 0.0 { "behind the foot's line" } else { "ahead of the foot's line" },
+            if g.knee_branch < 0.0 {
+                "behind the foot's line"
+            } else {
+                "ahead of the foot's line"
+            },
             robot.joint_ranges_rad(leg)
         )
         .unwrap();

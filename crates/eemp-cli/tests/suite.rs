@@ -55,6 +55,7 @@ fn config() -> SuiteConfig {
         ],
         robot: None,
         allow_robot_mismatch: false,
+        speeds_scale_with_robot: false,
     }
 }
 

@@ -702,7 +702,7 @@ impl RobotConfig {
     /// Standing joint angles for every leg.
     pub fn standing_pose(&self) -> LegMap<Vector3<f64>> {
         if let Some(m) = &self.model {
-            return m.standing_pose_rad.clone();
+            return m.standing_pose_rad;
         }
         LegMap::splat(Vector3::from(self.leg.standing_pose_rad))
     }

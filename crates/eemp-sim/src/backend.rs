@@ -69,27 +69,39 @@ pub struct Simulation {
 pub fn build_model(robot: &RobotConfig, extras: &SceneExtras) -> Result<Arc<MjModel>, SimError> {
     let xml = robot_mjcf(robot, extras);
     let Some(m) = &robot.model else {
-        let model =
-            MjModel::from_xml_string(&xml).map_err(|e| SimError::Model(e.to_string()))?;
+        let model = MjModel::from_xml_string(&xml).map_err(|e| SimError::Model(e.to_string()))?;
         return Ok(Arc::new(model));
     };
-    // A robot read from its own model: its edited spec attached into the scene, compiled as
-    // one; no text round trip (MuJoCo's XML writer drops some default-class values).
-    let model_err = |e: &dyn std::fmt::Display| SimError::Model(e.to_string());
-    let (mut robot_spec, _) =
-        crate::robot_model::edited_spec(&m.source, &m.edits).map_err(|e| model_err(&e))?;
-    crate::robot_model::add_tracking_camera(&mut robot_spec, robot).map_err(|e| model_err(&e))?;
-    if let Some(k) = extras.motor_strength_scale {
-        crate::robot_model::scale_motor_strength(&mut robot_spec, k);
-    }
-    let mut scene = MjSpec::from_xml_string(&xml).map_err(|e| model_err(&e))?;
-    scene
-        .world_body_mut()
-        .attach_by_deep_copy(&mut robot_spec, "", "")
-        .map_err(|e| model_err(&e))?;
-    let mut model = scene.compile().map_err(|e| model_err(&e))?;
+    let mut spec = bound_scene_spec(robot, extras)?;
+    let mut model = spec.compile().map_err(|e| SimError::Model(e.to_string()))?;
     apply_trunk_changes(&mut model, &robot.trunk, &m.compiled_trunk)?;
     Ok(Arc::new(model))
+}
+
+/// The scene of a robot read from its own model: the floor and terrain attached into its edited
+/// spec, to be compiled as one (no text round trip: MuJoCo's XML writer drops some
+/// default-class values, such as a class's `mass="0"`).
+pub fn bound_scene_spec(robot: &RobotConfig, extras: &SceneExtras) -> Result<MjSpec, SimError> {
+    let model_err = |e: &dyn std::fmt::Display| SimError::Model(e.to_string());
+    let m = robot.model.as_ref().ok_or_else(|| {
+        SimError::Model("the robot is typed into its file, not bound to a model".into())
+    })?;
+    let (mut spec, _) =
+        crate::robot_model::edited_spec(&m.source, &m.edits).map_err(|e| model_err(&e))?;
+    crate::robot_model::complete_for_scene(&mut spec, robot).map_err(|e| model_err(&e))?;
+    if let Some(k) = extras.motor_strength_scale {
+        crate::robot_model::scale_motor_strength(&mut spec, k);
+    }
+    let mut scene =
+        MjSpec::from_xml_string(&robot_mjcf(robot, extras)).map_err(|e| model_err(&e))?;
+    spec.world_body_mut()
+        .attach_by_deep_copy(&mut scene, "scene_", "")
+        .map_err(|e| model_err(&e))?;
+    spec.geom_mut("scene_floor")
+        .ok_or_else(|| SimError::Model("the scene's floor was not attached".into()))?
+        .set_name("floor")
+        .map_err(|e| model_err(&e))?;
+    Ok(spec)
 }
 
 /// A robot read from its own model keeps the model's trunk inertial; a run's trunk-mass and

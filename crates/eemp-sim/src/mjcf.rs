@@ -43,15 +43,7 @@ pub fn foot_geom_name(leg: Leg) -> String {
     format!("{}_foot", leg.short_name())
 }
 
-const VISUAL: &str = r#"<visual><global offwidth="1280" offheight="720"/><quality shadowsize="1024" offsamples="0"/></visual>"#;
 const FLOOR_ASSETS: &str = r#"<texture name="floor_checker" type="2d" builtin="checker" width="256" height="256" rgb1="0.85 0.85 0.85" rgb2="0.62 0.62 0.68"/><material name="floor" texture="floor_checker" texrepeat="4 4" texuniform="true"/>"#;
-const SENSORS: &str = r#"  <sensor>
-    <framequat name="imu_quat" objtype="site" objname="imu"/>
-    <gyro name="imu_gyro" site="imu"/>
-    <accelerometer name="imu_accel" site="imu"/>
-  </sensor>
-"#;
-
 /// The light, floor and terrain of every scene (inside `<worldbody>`).
 fn world(robot: &RobotConfig, extras: &SceneExtras) -> String {
     format!(
@@ -64,22 +56,18 @@ fn world(robot: &RobotConfig, extras: &SceneExtras) -> String {
     )
 }
 
-/// The scene around a robot read from its own model ([`crate::robot_model`]): the project's
-/// options, floor, terrain and IMU sensors, with no robot; the robot's edited model is
-/// attached into its world ([`crate::backend::build_model`]).
+/// The floor and terrain around a robot read from its own model ([`crate::robot_model`]),
+/// with no robot: attached into the robot's world, which gets the options and IMU sensors
+/// ([`crate::backend::build_model`]).
 pub fn scene_without_robot(robot: &RobotConfig, extras: &SceneExtras) -> String {
     format!(
-        r#"<mujoco model="{name}">
+        r#"<mujoco model="scene">
   <compiler angle="radian" autolimits="true"/>
-  <option timestep="{dt}" integrator="Euler" cone="elliptic" impratio="100"/>
-  {VISUAL}
   <asset>{FLOOR_ASSETS}{assets}</asset>
   <worldbody>
 {world}  </worldbody>
-{SENSORS}</mujoco>
+</mujoco>
 "#,
-        name = robot.name,
-        dt = robot.simulation.timestep_s,
         assets = extras.assets_xml,
         world = world(robot, extras),
     )

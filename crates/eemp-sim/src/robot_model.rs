@@ -23,8 +23,7 @@ use eemp_core::kinematics::LegGeometry;
 use eemp_core::leg::{Leg, LegMap};
 use eemp_core::robot::{
     fnv1a64, ControlDefaults, LegConfig, LinkConfig, LinkInertial, ModelDescription, ModelEdits,
-    RobotConfig,
-    SdkConfig, SimulationConfig, TrunkConfig,
+    RobotConfig, SdkConfig, SimulationConfig, TrunkConfig,
 };
 use mujoco_rs::prelude::*;
 use mujoco_rs::wrappers::mj_editing::SpecObject;
@@ -155,12 +154,9 @@ pub fn edited_spec(source: &Path, edits: &ModelEdits) -> Result<(MjSpec, [f64; 3
 /// Removes the mesh geoms that do not collide (visuals), the meshes no geom uses any more,
 /// textures and materials; a colliding mesh stays, its file found from the model's folder.
 fn strip_visual_meshes(spec: &mut MjSpec, model_dir: &Path) -> Result<(), String> {
-    loop {
-        let Some(geom) = spec.geom_iter_mut().find(|g| {
-            g.type_() == MjtGeomBase::mjGEOM_MESH && g.contype() == 0 && g.conaffinity() == 0
-        }) else {
-            break;
-        };
+    while let Some(geom) = spec.geom_iter_mut().find(|g| {
+        g.type_() == MjtGeomBase::mjGEOM_MESH && g.contype() == 0 && g.conaffinity() == 0
+    }) {
         // SAFETY: the geom is deleted once; no handle outlives the call.
         unsafe { geom.delete() }.map_err(|e| e.to_string())?;
     }
@@ -178,13 +174,10 @@ fn strip_visual_meshes(spec: &mut MjSpec, model_dir: &Path) -> Result<(), String
             n => n.to_string(),
         }
     };
-    loop {
-        let Some(mesh) = spec
-            .mesh_iter_mut()
-            .find(|m| !used.contains(&mesh_name(m.name(), m.file())))
-        else {
-            break;
-        };
+    while let Some(mesh) = spec
+        .mesh_iter_mut()
+        .find(|m| !used.contains(&mesh_name(m.name(), m.file())))
+    {
         // SAFETY: as above.
         unsafe { mesh.delete() }.map_err(|e| e.to_string())?;
     }
@@ -291,8 +284,8 @@ fn find_legs(model: &MjModel) -> Result<(usize, LegMap<FoundLeg>), ConfigError> 
         }
     }
     // A leg without a foot, or with other than three hinges, is named.
-    for b in 0..model.ffi().nbody as usize {
-        if parent[b] as usize == trunk && b != trunk && model.body_jntnum()[b] > 0 {
+    for (b, &p) in parent.iter().enumerate() {
+        if p as usize == trunk && b != trunk && model.body_jntnum()[b] > 0 {
             let first = model.body_jntadr()[b] as usize;
             if !feet.iter().any(|f| f.1[0] == first) {
                 return Err(invalid(
@@ -617,8 +610,32 @@ fn rename_and_motorise(
     Ok(())
 }
 
-/// The camera videos follow the robot with: the A1's view scaled by the robot's leg length.
-pub fn add_tracking_camera(spec: &mut MjSpec, robot: &RobotConfig) -> Result<(), String> {
+/// What the generated models have and a bound model gets here: the project's contact and
+/// integration options, the IMU sensors on the trunk's `imu` site, a larger offscreen buffer for
+/// videos, and the camera videos follow the robot with (the A1's view scaled by the robot's
+/// leg length).
+pub fn complete_for_scene(spec: &mut MjSpec, robot: &RobotConfig) -> Result<(), String> {
+    let opt = spec.option_mut();
+    opt.timestep = robot.simulation.timestep_s;
+    opt.integrator = 0; // mjINT_EULER
+    opt.cone = 1; // mjCONE_ELLIPTIC
+    opt.impratio = 100.0;
+    let visual = spec.visual_mut();
+    visual.global.offwidth = 1280;
+    visual.global.offheight = 720;
+    visual.quality.shadowsize = 1024;
+    visual.quality.offsamples = 0;
+    for (name, kind) in [
+        ("imu_quat", MjtSensor::mjSENS_FRAMEQUAT),
+        ("imu_gyro", MjtSensor::mjSENS_GYRO),
+        ("imu_accel", MjtSensor::mjSENS_ACCELEROMETER),
+    ] {
+        let sensor = spec.add_sensor();
+        sensor.set_name(name).map_err(|e| e.to_string())?;
+        sensor.set_type(kind);
+        sensor.set_objtype(MjtObjBase::mjOBJ_SITE);
+        sensor.set_objname("imu");
+    }
     let [l1, l2] = robot.leg_geometry(Leg::FrontLeft).segment_lengths_m();
     let k = (l1 + l2) / 0.4;
     let trunk = spec.body_mut("trunk").ok_or("trunk body lost")?;
@@ -626,7 +643,9 @@ pub fn add_tracking_camera(spec: &mut MjSpec, robot: &RobotConfig) -> Result<(),
     camera.set_name("track").map_err(|e| e.to_string())?;
     camera.set_mode(MjtCamLight::mjCAMLIGHT_TRACKCOM);
     *camera.pos_mut() = [0.4 * k, -1.6 * k, 0.5 * k];
-    camera.alt_mut().set_xy_axis(&[1.0, 0.25, 0.0, -0.1, 0.3, 1.0]);
+    camera
+        .alt_mut()
+        .set_xy_axis(&[1.0, 0.25, 0.0, -0.1, 0.3, 1.0]);
     Ok(())
 }
 

@@ -83,8 +83,16 @@ fn foot_positions_and_jacobians_match_mujoco_on_every_shipped_robot() {
                     .max((jac_core_world - sim.foot_jacobian_world(leg)).abs().max());
             }
         }
-        assert!(worst.0 < 1e-9, "{name}: worst foot position error {} m", worst.0);
-        assert!(worst.1 < 1e-9, "{name}: worst Jacobian entry error {}", worst.1);
+        assert!(
+            worst.0 < 1e-9,
+            "{name}: worst foot position error {} m",
+            worst.0
+        );
+        assert!(
+            worst.1 < 1e-9,
+            "{name}: worst Jacobian entry error {}",
+            worst.1
+        );
     }
 }
 
@@ -167,7 +175,11 @@ fn composite_body_matches_mujoco_mass_com_and_inertia_on_every_shipped_robot() {
         let q = robot.standing_pose();
         sim.reset(Vector3::new(0.0, 0.0, 1.0), &q);
         let body = robot.composite_body(&q);
-        let trunk = sim.data().model().name_to_id(mujoco_rs::prelude::MjtObjBase::mjOBJ_BODY, "trunk").unwrap();
+        let trunk = sim
+            .data()
+            .model()
+            .name_to_id(mujoco_rs::prelude::MjtObjBase::mjOBJ_BODY, "trunk")
+            .unwrap();
         let com_world = sim.data().subtree_com()[trunk];
         let expected = Vector3::new(0.0, 0.0, 1.0) + body.com_body;
         assert!(
@@ -176,7 +188,8 @@ fn composite_body_matches_mujoco_mass_com_and_inertia_on_every_shipped_robot() {
         );
         let mujoco_mass = sim.data().model().body_subtreemass()[trunk];
         assert!(
-            (mujoco_mass - body.mass_kg).abs() < 1e-9 && (robot.total_mass_kg() - body.mass_kg).abs() < 1e-9,
+            (mujoco_mass - body.mass_kg).abs() < 1e-9
+                && (robot.total_mass_kg() - body.mass_kg).abs() < 1e-9,
             "{name}: mass {mujoco_mass} vs {}",
             body.mass_kg
         );
@@ -187,9 +200,12 @@ fn composite_body_matches_mujoco_mass_com_and_inertia_on_every_shipped_robot() {
         for b in 1..model.ffi().nbody as usize {
             let x = data.ximat()[b];
             let rot = nalgebra::Matrix3::new(x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], x[8]);
-            let i = rot * nalgebra::Matrix3::from_diagonal(&Vector3::from(model.body_inertia()[b])) * rot.transpose();
+            let i = rot
+                * nalgebra::Matrix3::from_diagonal(&Vector3::from(model.body_inertia()[b]))
+                * rot.transpose();
             let d = Vector3::from(data.xipos()[b]) - Vector3::from(com_world);
-            inertia += i + model.body_mass()[b] * (nalgebra::Matrix3::identity() * d.dot(&d) - d * d.transpose());
+            inertia += i + model.body_mass()[b]
+                * (nalgebra::Matrix3::identity() * d.dot(&d) - d * d.transpose());
         }
         assert!(
             (inertia - body.inertia_body).abs().max() < 1e-9,

@@ -512,10 +512,21 @@ impl SweepConfig {
                 ))
             }
         };
-        if let Some(r) = &g.robot {
-            eemp_sim::robot_model::load_robot(r)
-                .map_err(|e| v.error("grid.robot", e.to_string()))?;
-        }
+        // Table I's ranges are the A1's; a robot whose settings are scaled
+        // (`RobotConfig::settings_scale`) gets them scaled the same way.
+        let scale = match &g.robot {
+            Some(r) => eemp_sim::robot_model::load_robot(r)
+                .map_err(|e| v.error("grid.robot", e.to_string()))?
+                .settings_scale(),
+            None => None,
+        };
+        let (l, t) = scale.map_or((1.0, 1.0), |s| (s.length, s.length.sqrt()));
+        // Scaled bounds are written to the millimetre (or ms) in sweep files: a thousandth
+        // of slack each side.
+        let scaled = |r: [f64; 2], k: f64| match scale {
+            Some(_) => [r[0] * k - 1e-3, r[1] * k + 1e-3],
+            None => r,
+        };
         let grid = Grid {
             estimator,
             robot: g.robot.clone(),
@@ -523,12 +534,22 @@ impl SweepConfig {
             mpc_weights: v.mpc_weights(&g.mpc_weights)?,
             progress_factor: v.progress_factor(g.progress_factor.as_ref(), &gaits)?,
             gaits,
-            speed_mps: v.axis("speed_mps", &g.speed_mps, table_i::SPEED_MPS, "m/s")?,
-            swing_time_s: v.axis("swing_time_s", &g.swing_time_s, table_i::SWING_TIME_S, "s")?,
+            speed_mps: v.axis(
+                "speed_mps",
+                &g.speed_mps,
+                scaled(table_i::SPEED_MPS, t),
+                "m/s",
+            )?,
+            swing_time_s: v.axis(
+                "swing_time_s",
+                &g.swing_time_s,
+                scaled(table_i::SWING_TIME_S, t),
+                "s",
+            )?,
             step_height_m: v.axis(
                 "step_height_m",
                 &g.step_height_m,
-                table_i::STEP_HEIGHT_M,
+                scaled(table_i::STEP_HEIGHT_M, l),
                 "m",
             )?,
             body_height_m: v.axis(
@@ -540,13 +561,13 @@ impl SweepConfig {
             ellipse_rx_m: v.axis(
                 "ellipse_rx_m",
                 &g.ellipse_rx_m,
-                table_i::ELLIPSE_AXIS_M,
+                scaled(table_i::ELLIPSE_AXIS_M, l),
                 "m",
             )?,
             ellipse_ry_m: v.axis(
                 "ellipse_ry_m",
                 &g.ellipse_ry_m,
-                table_i::ELLIPSE_AXIS_M,
+                scaled(table_i::ELLIPSE_AXIS_M, l),
                 "m",
             )?,
             duration_s: v.duration(g.duration_s.0)?,

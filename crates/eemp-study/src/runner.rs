@@ -443,7 +443,8 @@ mod tests {
         assert_eq!(walk.seed, 7);
         assert_eq!(walk.state_source, StateSource::GroundTruth);
         assert_eq!(
-            walk_spec(&spec(Gait::Trot), &factors, gt, &w, &robot).unwrap()
+            walk_spec(&spec(Gait::Trot), &factors, gt, &w, &robot)
+                .unwrap()
                 .planner
                 .progress_factor,
             0.5
@@ -464,7 +465,8 @@ mod tests {
             force: Some(1e-3),
             ..Default::default()
         };
-        let mpc = walk_spec(&spec(Gait::Trot), &factors, gt, &heavy, &robot).unwrap()
+        let mpc = walk_spec(&spec(Gait::Trot), &factors, gt, &heavy, &robot)
+            .unwrap()
             .controller
             .mpc;
         let d = eemp_core::convex_mpc::MpcConfig::default();

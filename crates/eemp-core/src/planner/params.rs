@@ -241,15 +241,22 @@ mod tests {
     #[test]
     fn table_ii_defaults_are_valid_and_out_of_range_values_are_named() {
         PlannerParams::default().validate().unwrap();
-        let err = PlannerParams {
+        // Plausibility bounds, not Table I's grid: a large robot swings longer than 0.25 s.
+        PlannerParams {
             swing_time_s: 0.3,
+            ..Default::default()
+        }
+        .validate()
+        .unwrap();
+        let err = PlannerParams {
+            swing_time_s: 1.3,
             ..Default::default()
         }
         .validate()
         .unwrap_err()
         .to_string();
         assert!(
-            err.contains("swing_time_s") && err.contains("[0.1, 0.25]"),
+            err.contains("swing_time_s") && err.contains("[0.05, 1]"),
             "{err}"
         );
         let err = PlannerParams {
@@ -260,7 +267,7 @@ mod tests {
         .unwrap_err()
         .to_string();
         assert!(
-            err.contains("ellipse_ry_m") && err.contains("[0.01, 0.15]"),
+            err.contains("ellipse_ry_m") && err.contains("[0.005, 0.5]"),
             "{err}"
         );
         let err = PlannerParams {

@@ -167,7 +167,9 @@ impl ParamsTable {
             entries: self
                 .entries
                 .iter()
-                .map(|e| TableEntry::new(e.speed_mps * scale.length.sqrt(), &e.params().scaled(scale)))
+                .map(|e| {
+                    TableEntry::new(e.speed_mps * scale.length.sqrt(), &e.params().scaled(scale))
+                })
                 .collect(),
             ..self.clone()
         }
@@ -398,7 +400,7 @@ mod tests {
             vec![TableEntry::new(
                 0.1,
                 &PlannerParams {
-                    swing_time_s: 0.5,
+                    swing_time_s: 1.5,
                     ..Default::default()
                 },
             )],
