@@ -186,7 +186,12 @@ fn check(args: &RobotCheckArgs) -> Result<(), String> {
         Some(m) => writeln!(
             r,
             "Read from its own MuJoCo model `{}`.\n",
-            m.source.display()
+            // Relative to the working directory where it lies below it (reports are committed).
+            std::env::current_dir()
+                .ok()
+                .and_then(|d| m.source.strip_prefix(d).ok().map(Path::to_path_buf))
+                .unwrap_or_else(|| m.source.clone())
+                .display()
         ),
         None => writeln!(
             r,
@@ -253,7 +258,15 @@ fn check(args: &RobotCheckArgs) -> Result<(), String> {
          largest Jacobian-entry error {jac_err:.2e} m/rad."
     )
     .unwrap();
-    let field = |v: &serde_json::Value, k: &str| v.get(k).cloned().unwrap_or_default();
+    // A number to three decimals, a flag as written, "–" where the run has none.
+    let field = |v: &serde_json::Value, k: &str| match v.get(k) {
+        Some(serde_json::Value::Number(n)) => match n.as_f64() {
+            Some(x) if n.is_f64() => format!("{x:.3}"),
+            _ => n.to_string(),
+        },
+        Some(serde_json::Value::Null) | None => "–".to_string(),
+        Some(other) => other.to_string(),
+    };
     writeln!(r, "\n## Stand and trot\n").unwrap();
     writeln!(
         r,
@@ -277,9 +290,36 @@ fn check(args: &RobotCheckArgs) -> Result<(), String> {
         field(&trot, "vel_rmse_mps")
     )
     .unwrap();
+    writeln!(r, "\n## Thresholds scaled to its size\n").unwrap();
+    writeln!(
+        r,
+        "Measurement thresholds and input limits that follow the robot's size \
+         (`eemp_core::robot_size`; the A1's value × the factor of its unit):\n"
+    )
+    .unwrap();
+    writeln!(
+        r,
+        "| constant | the A1's | this robot's | unit | what |\n|---|---|---|---|---|"
+    )
+    .unwrap();
+    let size = robot.scale();
+    for c in eemp_core::robot_size::SIZED_CONSTANTS {
+        writeln!(
+            r,
+            "| `{}` | {} | {:.4} | {} | {} |",
+            c.name,
+            c.a1_value,
+            size.sized(&c),
+            c.unit,
+            c.about
+        )
+        .unwrap();
+    }
     writeln!(r, "\n## First tables\n").unwrap();
     for p in &written {
-        writeln!(r, "- `{}`", p.display()).unwrap();
+        // Named from the report's folder: the report moves with it.
+        let shown = p.strip_prefix(&args.out).unwrap_or(p);
+        writeln!(r, "- `{}`", shown.display()).unwrap();
     }
     writeln!(
         r,

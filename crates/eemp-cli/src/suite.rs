@@ -511,22 +511,27 @@ impl SuiteConfig {
         Ok(())
     }
 
+    /// A scenario's speeds as run: × √λ when `speeds_scale_with_robot` (rounded to the
+    /// millimetre per second that run ids and tables print), else as written.
+    pub fn scenario_speeds(&self, s: &ScenarioConfig) -> Result<Vec<f64>, String> {
+        let speeds = s.speeds()?;
+        if !self.speeds_scale_with_robot {
+            return Ok(speeds);
+        }
+        let factor = crate::robot_arg::load_robot(self.robot.as_deref())?
+            .scale()
+            .length
+            .sqrt();
+        Ok(speeds
+            .into_iter()
+            .map(|v| (v * factor * 1000.0).round() / 1000.0)
+            .collect())
+    }
+
     pub fn runs(&self) -> Result<Vec<SuiteRun>, String> {
-        let factor = match self.speeds_scale_with_robot {
-            true => crate::robot_arg::load_robot(self.robot.as_deref())?
-                .scale()
-                .length
-                .sqrt(),
-            false => 1.0,
-        };
         let mut runs = Vec::new();
         for (si, s) in self.scenarios.iter().enumerate() {
-            for v in s.speeds()? {
-                // Rounded to the millimetre per second the run ids and tables print.
-                let v = match self.speeds_scale_with_robot {
-                    true => (v * factor * 1000.0).round() / 1000.0,
-                    false => v,
-                };
+            for v in self.scenario_speeds(s)? {
                 for mi in 0..self.methods.len() {
                     for &seed in &self.seeds {
                         runs.push(SuiteRun {

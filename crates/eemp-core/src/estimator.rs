@@ -15,6 +15,8 @@ use crate::config_error::{check_range, ConfigError};
 use crate::kinematics::LegKinematics;
 use crate::leg::{Leg, LegMap};
 use crate::planner::Plan;
+use crate::robot::RobotScale;
+use crate::robot_size;
 use nalgebra::{SMatrix, SVector, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
@@ -60,13 +62,20 @@ pub fn foot_force_from_torque(
 pub struct ContactTrust {
     /// When each leg entered stance, s.
     stance_since: LegMap<Option<f64>>,
+    /// Without a plan: the vertical leg force of no trust and of full trust, N (the robot's,
+    /// [`crate::robot_size::TRUST_FORCE_NONE`] and [`crate::robot_size::TRUST_FORCE_FULL`]).
+    force_n: [f64; 2],
 }
 
 impl ContactTrust {
-    /// All legs in stance since `t_s` (episodes start standing).
-    pub fn new(t_s: f64) -> Self {
+    /// All legs in stance since `t_s` (episodes start standing), for a robot of size `size`.
+    pub fn new(t_s: f64, size: &RobotScale) -> Self {
         ContactTrust {
             stance_since: LegMap::splat(Some(t_s)),
+            force_n: [
+                size.sized(&robot_size::TRUST_FORCE_NONE),
+                size.sized(&robot_size::TRUST_FORCE_FULL),
+            ],
         }
     }
 
@@ -92,7 +101,10 @@ impl ContactTrust {
             None => LegMap::from_fn(|leg| {
                 let j = kin.foot_jacobian_body(leg, &state.joints[leg].q);
                 foot_force_from_torque(&j, &state.body.r_world_body, &last_torques[leg])
-                    .map(|f| ((f.z - 10.0) / 20.0).clamp(0.0, 1.0))
+                    .map(|f| {
+                        let [none, full] = self.force_n;
+                        ((f.z - none) / (full - none)).clamp(0.0, 1.0)
+                    })
                     .unwrap_or(0.0)
             }),
         }

@@ -40,6 +40,7 @@ pub mod metrics;
 pub mod pipeline;
 pub mod planner;
 pub mod robot;
+pub mod robot_size;
 pub mod safety;
 pub mod settings;
 pub mod settings_keys;

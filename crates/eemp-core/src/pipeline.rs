@@ -20,6 +20,7 @@ use crate::leg::LegMap;
 use crate::leg_control::DynamicsModel;
 use crate::locomotion::{feet_world, ControlOutput};
 use crate::planner::VelocityCommand;
+use crate::robot::RobotScale;
 use nalgebra::Vector3;
 use std::time::Instant;
 
@@ -62,16 +63,19 @@ pub struct Update {
 #[derive(Clone)]
 pub struct ControlPipeline {
     filter: Option<LinearKf>,
+    size: RobotScale,
     trust: ContactTrust,
     last_torques: LegMap<Vector3<f64>>,
 }
 
 impl ControlPipeline {
-    /// A pipeline without a filter (the state is used as sensed), starting at `time_s`.
-    pub fn new(time_s: f64) -> Self {
+    /// A pipeline without a filter (the state is used as sensed), starting at `time_s`, for a
+    /// robot of size `size` (the filter's contact trust without a plan follows it).
+    pub fn new(time_s: f64, size: RobotScale) -> Self {
         ControlPipeline {
             filter: None,
-            trust: ContactTrust::new(time_s),
+            size,
+            trust: ContactTrust::new(time_s, &size),
             last_torques: LegMap::splat(Vector3::zeros()),
         }
     }
@@ -87,7 +91,7 @@ impl ControlPipeline {
 
     /// Starts over at `time_s`: no stance legs trusted yet, no torques sent.
     pub fn restart(&mut self, time_s: f64) {
-        self.trust = ContactTrust::new(time_s);
+        self.trust = ContactTrust::new(time_s, &self.size);
         self.last_torques = LegMap::splat(Vector3::zeros());
     }
 

@@ -25,11 +25,14 @@ use toml::Value;
 /// The tables of the settings tree, in the order `eemp config show` prints them.
 pub const TABLES: [&str; 6] = ["planner", "mpc", "swing", "slip", "schedule", "filter"];
 
-/// Keys [`ControllerSettings::scaled`] leaves as they are, though they have a unit: how often
-/// the MPC solves is a control rate, not a property of the robot's motion. Slowed by √λ for a
-/// larger robot it let Spot's trunk (light in roll for its size) oscillate off its feet in
-/// 0.5 s of standing; kept at the A1's, Spot stands and walks.
-pub const UNSCALED_KEYS: [&str; 1] = ["schedule.mpc_period_s"];
+/// Keys [`ControllerSettings::scaled`] leaves as they are, though they have a unit:
+/// - how often the MPC solves is a control rate, not a property of the robot's motion. Slowed
+///   by √λ for a larger robot it let Spot's trunk (light in roll for its size) oscillate off its
+///   feet in 0.5 s of standing; kept at the A1's, Spot stands and walks;
+/// - the filter's foot height is the robot's own foot radius already (`StateSource::kf`):
+///   scaled once more it put the B2's feet 2.4 cm too low, and the filter's trunk 5 cm too
+///   high and its velocity 0.17 m/s off while standing.
+pub const UNSCALED_KEYS: [&str; 2] = ["schedule.mpc_period_s", "filter.foot_height_m"];
 
 /// The settings a run controls itself with: planner, controller, and (on the filter) the
 /// filter's.

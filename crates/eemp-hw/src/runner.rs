@@ -293,7 +293,7 @@ pub fn run_hw(
     let period = 1.0 / opts.rate_hz;
     let wall0 = Instant::now();
     // Estimate → controller, as in simulation; the filter starts at the first state.
-    let mut pipeline = ControlPipeline::new(0.0);
+    let mut pipeline = ControlPipeline::new(0.0, robot.scale());
     let mut started = false;
     let mut newest_tick: Option<u32> = None;
     let mut first_tick_s = 0.0;

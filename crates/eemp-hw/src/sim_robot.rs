@@ -322,7 +322,7 @@ pub fn run_sim_robot(
         &opts.start.joints,
     );
     let dt = sim.timestep_s();
-    let limits = FallLimits::default();
+    let limits = FallLimits::for_size(&robot.scale());
     let mut report = SimRobotReport {
         steps: 0,
         commands: 0,

@@ -156,7 +156,7 @@ impl PyEempController {
                 controller,
                 model,
                 kin: LegKinematics::new(&robot),
-                pipeline: ControlPipeline::new(0.0),
+                pipeline: ControlPipeline::new(0.0, robot.scale()),
             }),
         })
     }

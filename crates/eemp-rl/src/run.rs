@@ -361,7 +361,7 @@ impl WalkDescription {
                 ("--lateral", self.lateral_mps, "m/s"),
                 ("--yaw-rate", self.yaw_rate_rps, "rad/s"),
             ];
-            for ((flag, v, unit), [lo, hi]) in given.into_iter().zip(eemp_sim::walk::COMMAND_RANGES)
+            for ((flag, v, unit), [lo, hi]) in given.into_iter().zip(robot.scale().command_ranges())
             {
                 if !(v.is_finite() && (lo..=hi).contains(&v)) {
                     return Err(format!(

@@ -11,6 +11,8 @@ use eemp_core::leg::LegMap;
 use eemp_core::locomotion::{ControlOutput, Plan};
 use eemp_core::pipeline::{ControlPipeline, Prepared, Sensed};
 use eemp_core::planner::VelocityCommand;
+use eemp_core::robot::RobotScale;
+use eemp_core::robot_size;
 use nalgebra::Vector3;
 use std::time::Instant;
 
@@ -50,16 +52,16 @@ pub struct FallLimits {
     pub max_tilt_rad: f64,
 }
 
-impl Default for FallLimits {
-    fn default() -> Self {
+impl FallLimits {
+    /// The limits of a robot of size `size`: the height is
+    /// [`eemp_core::robot_size::FALL_MIN_HEIGHT`] scaled to it, the tilt is an angle.
+    pub fn for_size(size: &RobotScale) -> Self {
         FallLimits {
-            min_height_m: 0.12,
+            min_height_m: size.sized(&robot_size::FALL_MIN_HEIGHT),
             max_tilt_rad: 0.8,
         }
     }
-}
 
-impl FallLimits {
     /// Whether `state` counts as fallen on the flat floor.
     pub fn fallen(&self, state: &RobotState) -> bool {
         self.fallen_above(state, 0.0)
@@ -88,16 +90,12 @@ pub struct StepRecord<'a> {
     pub feet_world: &'a LegMap<Vector3<f64>>,
     /// Feet touching the ground according to the simulator.
     pub contacts: LegMap<bool>,
-    /// Feet carrying more than [`LOADED_FOOT_N`] (from the previous step's contact solve).
+    /// Feet carrying more than [`eemp_core::robot_size::LOADED_FOOT`] (the robot's; from the
+    /// previous step's contact solve).
     pub loaded: LegMap<bool>,
     /// Each foot's normal force from the previous step's contact solve, N.
     pub foot_normal_n: LegMap<f64>,
 }
-
-/// A foot counts as carrying the robot above this normal force, N. The floor's contacts are
-/// soft (the feet sink ~17 mm standing), so a foot can stay "in contact" through a swing with
-/// a few newtons; a stance foot of the 12.5 kg A1 carries 30–60 N.
-pub const LOADED_FOOT_N: f64 = 5.0;
 
 /// Where the controller's state comes from.
 #[derive(Clone, Debug, PartialEq)]
@@ -254,6 +252,8 @@ pub struct ClosedLoop {
     t_start: f64,
     wall_start: Instant,
     loaded: LegMap<bool>,
+    /// A foot carries the robot above this normal force, N.
+    loaded_foot_n: f64,
     foot_normal_n: LegMap<f64>,
     /// The simulated IMU and encoders, where the controller runs on the filter.
     sensors: Option<Sensors>,
@@ -282,17 +282,21 @@ pub enum EpisodeEnd {
 
 impl ClosedLoop {
     /// Starts an episode from the simulation's current state, on ground truth.
-    pub fn new(sim: Simulation, pushes: &[Push], limits: FallLimits) -> Self {
+    /// `size` is the robot's as described (not as simulated with a payload or model errors):
+    /// the fall limits, the loaded-foot force and the filter's contact trust follow it
+    /// ([`eemp_core::robot_size`]).
+    pub fn new(sim: Simulation, pushes: &[Push], size: RobotScale) -> Self {
         let t_start = sim.time_s();
         ClosedLoop {
             sensors: None,
-            pipeline: ControlPipeline::new(t_start),
+            pipeline: ControlPipeline::new(t_start, size),
+            loaded_foot_n: size.sized(&robot_size::LOADED_FOOT),
             last_estimate: None,
             estimation: EstimationStats::default(),
             sim,
             pending: pushes.to_vec(),
             pulses: Vec::new(),
-            limits,
+            limits: FallLimits::for_size(&size),
             ground: None,
             stats: LoopStats::default(),
             t_start,
@@ -308,10 +312,10 @@ impl ClosedLoop {
     pub fn with_state_source(
         sim: Simulation,
         pushes: &[Push],
-        limits: FallLimits,
+        size: RobotScale,
         source: &StateSource,
     ) -> Result<Self, eemp_core::config_error::ConfigError> {
-        let mut lp = ClosedLoop::new(sim, pushes, limits);
+        let mut lp = ClosedLoop::new(sim, pushes, size);
         lp.set_state_source(source)?;
         Ok(lp)
     }
@@ -503,7 +507,7 @@ impl ClosedLoop {
         let sim = &mut self.sim;
         sim.advance(&output.torques);
         self.foot_normal_n = sim.foot_normal_forces_n();
-        self.loaded = self.foot_normal_n.map(|_, f| *f > LOADED_FOOT_N);
+        self.loaded = self.foot_normal_n.map(|_, f| *f > self.loaded_foot_n);
         // Pushes take effect between steps. A pulse acts for n = round(duration / dt) ≥ 1
         // whole physics steps with the force that gives exactly mass × Δv over them.
         let had_pulses = !self.pulses.is_empty();

@@ -154,9 +154,10 @@ pub fn edited_spec(source: &Path, edits: &ModelEdits) -> Result<(MjSpec, [f64; 3
 /// Removes the mesh geoms that do not collide (visuals), the meshes no geom uses any more,
 /// textures and materials; a colliding mesh stays, its file found from the model's folder.
 fn strip_visual_meshes(spec: &mut MjSpec, model_dir: &Path) -> Result<(), String> {
-    while let Some(geom) = spec.geom_iter_mut().find(|g| {
-        g.type_() == MjtGeomBase::mjGEOM_MESH && g.contype() == 0 && g.conaffinity() == 0
-    }) {
+    while let Some(geom) = spec
+        .geom_iter_mut()
+        .find(|g| g.type_() == MjtGeomBase::mjGEOM_MESH && g.contype() == 0 && g.conaffinity() == 0)
+    {
         // SAFETY: the geom is deleted once; no handle outlives the call.
         unsafe { geom.delete() }.map_err(|e| e.to_string())?;
     }

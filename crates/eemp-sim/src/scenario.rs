@@ -93,7 +93,8 @@ impl Scenario {
                 });
             }
         }
-        check_range("payload_kg", self.payload_kg, 0.0, 10.0)?;
+        // Within the robot's cap when it runs (`WalkSpec::validate_for`).
+        check_range("payload_kg", self.payload_kg, 0.0, f64::MAX)?;
         self.model_error.validate()?;
         if let Some(s) = &self.sensors {
             s.validate()?;

@@ -3,8 +3,7 @@
 
 use crate::backend::{SimError, Simulation};
 use crate::closed_loop::{
-    run_closed_loop, ClosedLoop, EstimationStats, FallLimits, LoopStats, Push, StateSource,
-    StepRecord,
+    run_closed_loop, ClosedLoop, EstimationStats, LoopStats, Push, StateSource, StepRecord,
 };
 use crate::mjcf::SceneExtras;
 use eemp_core::config_error::ConfigError;
@@ -110,7 +109,7 @@ pub fn run_stand_on(
     )?;
     let mut controller = StandController::new(planner, locomotion);
     let lp = run_closed_loop(
-        ClosedLoop::with_state_source(sim, pushes, FallLimits::default(), source)?,
+        ClosedLoop::with_state_source(sim, pushes, robot.scale(), source)?,
         &mut controller,
         duration_s,
         |_| VelocityCommand::default(),

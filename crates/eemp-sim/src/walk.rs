@@ -3,8 +3,7 @@
 
 use crate::backend::Simulation;
 use crate::closed_loop::{
-    run_closed_loop, ClosedLoop, EstimationStats, FallLimits, LoopStats, Push, StateSource,
-    StepRecord,
+    run_closed_loop, ClosedLoop, EstimationStats, LoopStats, Push, StateSource, StepRecord,
 };
 use crate::mjcf::SceneExtras;
 use crate::stand::ScenarioError;
@@ -45,9 +44,6 @@ pub struct VelocityProfile {
     pub segments: Vec<ProfileSegment>,
 }
 
-/// The commands a walk accepts: forward m/s, lateral m/s, yaw rate rad/s (each [min, max]).
-pub const COMMAND_RANGES: [[f64; 2]; 3] = [[-1.5, 1.5], [-0.5, 0.5], [-1.5, 1.5]];
-
 impl VelocityProfile {
     /// A constant command from `start_s` on.
     pub fn constant(start_s: f64, command: VelocityCommand) -> Self {
@@ -61,7 +57,15 @@ impl VelocityProfile {
         }
     }
 
+    /// The profile's structure and finite commands (a run checks them against its robot's
+    /// ranges, [`VelocityProfile::validate_within`]).
     pub fn validate(&self) -> Result<(), ConfigError> {
+        self.validate_within([[f64::NEG_INFINITY, f64::INFINITY]; 3])
+    }
+
+    /// The profile's structure and its commands within `ranges` (forward m/s, lateral m/s,
+    /// yaw rate rad/s, each [min, max]: the robot's, [`RobotScale::command_ranges`]).
+    pub fn validate_within(&self, ranges: [[f64; 2]; 3]) -> Result<(), ConfigError> {
         if self.segments.is_empty() {
             return Err(ConfigError::Invalid {
                 name: "profile.segment".into(),
@@ -86,7 +90,7 @@ impl VelocityProfile {
                 });
             }
             last = s.start_s;
-            let [vx, vy, yaw] = COMMAND_RANGES;
+            let [vx, vy, yaw] = ranges;
             check_range(
                 &format!("profile.segment[{i}].vx_mps"),
                 s.vx_mps,
@@ -292,6 +296,20 @@ impl WalkSpec {
         }
     }
 
+    /// [`WalkSpec::validate`] and what depends on the robot's size: the commands within its
+    /// ranges and the payload within its cap ([`eemp_core::robot_size`]).
+    pub fn validate_for(&self, robot: &RobotConfig) -> Result<(), ConfigError> {
+        self.validate()?;
+        let size = robot.scale();
+        self.profile.validate_within(size.command_ranges())?;
+        check_range(
+            "payload_kg",
+            self.payload_kg,
+            0.0,
+            size.sized(&eemp_core::robot_size::MAX_PAYLOAD),
+        )
+    }
+
     pub fn validate(&self) -> Result<(), ConfigError> {
         self.controller.validate()?;
         if let Some(t) = &self.params_table {
@@ -308,6 +326,8 @@ impl WalkSpec {
         }
         self.planner.validate()?;
         self.params.validate()?;
+        // Commands and payload are checked against the robot's size when it runs
+        // ([`WalkSpec::validate_for`]); here only what no robot can take.
         self.profile.validate()?;
         check_range("duration_s", self.duration_s, 0.01, 3600.0)?;
         check_range(
@@ -320,7 +340,7 @@ impl WalkSpec {
             eemp_core::config_error::check_friction("floor_friction", mu)?;
         }
         self.terrain.validate()?;
-        check_range("payload_kg", self.payload_kg, 0.0, 10.0)?;
+        check_range("payload_kg", self.payload_kg, 0.0, f64::MAX)?;
         self.model_error.validate()?;
         if let StateSource::Kf { kf, sensors, .. } = &self.state_source {
             kf.validate()?;
@@ -465,7 +485,7 @@ pub fn run_walk_eemp_commanded(
     command_at: &mut dyn FnMut(f64) -> VelocityCommand,
     observer: impl FnMut(&StepRecord),
 ) -> Result<WalkRun, ScenarioError> {
-    spec.validate()?;
+    spec.validate_for(robot)?;
     let mut controller = eemp_controller(robot, spec)?;
     let start = StartPose::eemp(robot, spec)?;
     run_walk_commanded(robot, spec, &start, &mut controller, command_at, observer)
@@ -532,7 +552,7 @@ pub fn run_walk_commanded(
     command_at: &mut dyn FnMut(f64) -> VelocityCommand,
     mut observer: impl FnMut(&StepRecord),
 ) -> Result<WalkRun, ScenarioError> {
-    spec.validate()?;
+    spec.validate_for(robot)?;
     let (robot, scene) = spec.simulated_world(robot);
     let mut sim = Simulation::new(&robot, &scene)?;
     // On the platform of ground that goes down from the start (a step or stairs down).
@@ -548,12 +568,8 @@ pub fn run_walk_commanded(
     let mass = robot.total_mass_kg();
     let mut touchdowns = LegMap::splat(0usize);
     let mut was_down: Option<LegMap<bool>> = None;
-    let mut lp = ClosedLoop::with_state_source(
-        sim,
-        &spec.pushes,
-        FallLimits::default(),
-        &spec.state_source,
-    )?;
+    let mut lp =
+        ClosedLoop::with_state_source(sim, &spec.pushes, robot.scale(), &spec.state_source)?;
     lp.set_ground(&spec.terrain);
     let lp = run_closed_loop(lp, controller, spec.duration_s, command_at, |record| {
         let t = record.state.time_s;

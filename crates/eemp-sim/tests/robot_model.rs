@@ -103,3 +103,27 @@ fn a_leg_without_a_foot_or_a_knee_is_refused_by_name() {
         "{err}"
     );
 }
+
+/// The size-bound thresholds (`eemp_core::robot_size`) follow the robot: the B2's legs are
+/// 1.75 × the A1's (0.35 + 0.35 m against 0.2 + 0.2 m), its mass 83.5 kg.
+#[test]
+fn the_b2_gets_its_own_fall_height_loaded_foot_force_and_command_ranges() {
+    use eemp_core::robot_size::{FALL_MIN_HEIGHT, LOADED_FOOT, MAX_PAYLOAD};
+    use eemp_sim::closed_loop::FallLimits;
+    let robot = load_robot(&repo("robots/b2.toml")).unwrap();
+    let size = robot.scale();
+    assert!((size.length - 1.75).abs() < 1e-12, "{}", size.length);
+    let mu = robot.total_mass_kg() / eemp_core::robot::RobotConfig::a1().total_mass_kg();
+    assert!((FallLimits::for_size(&size).min_height_m - 0.12 * 1.75).abs() < 1e-12);
+    assert!((size.sized(&LOADED_FOOT) - 5.0 * mu).abs() < 1e-9);
+    assert!((size.sized(&MAX_PAYLOAD) - 10.0 * mu).abs() < 1e-9);
+    let [vx, _, yaw] = size.command_ranges();
+    assert!((vx[1] - 1.5 * 1.75f64.sqrt()).abs() < 1e-12);
+    assert!((yaw[1] - 1.5 / 1.75f64.sqrt()).abs() < 1e-12);
+    // Typed robots too: the A1's own values are exact.
+    let a1 = eemp_core::robot::RobotConfig::a1().scale();
+    assert_eq!(
+        FallLimits::for_size(&a1).min_height_m,
+        FALL_MIN_HEIGHT.a1_value
+    );
+}

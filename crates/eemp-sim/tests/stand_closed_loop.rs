@@ -5,7 +5,7 @@ use eemp_core::locomotion::ControllerConfig;
 use eemp_core::planner::VelocityCommand;
 use eemp_core::robot::RobotConfig;
 use eemp_core::stand_profile::BodyMotionProfile;
-use eemp_sim::closed_loop::{ClosedLoop, FallLimits, Push};
+use eemp_sim::closed_loop::{ClosedLoop, Push};
 use eemp_sim::mjcf::SceneExtras;
 use eemp_sim::stand::run_stand;
 use eemp_sim::Simulation;
@@ -129,7 +129,7 @@ fn a_pulse_acts_for_its_whole_steps_and_a_restart_clears_it() {
         dv_world: Vector3::new(0.0, 0.3, 0.0),
         duration_s: 0.0104,
     };
-    let mut lp = ClosedLoop::new(sim, &[pulse], FallLimits::default());
+    let mut lp = ClosedLoop::new(sim, &[pulse], robot.scale());
     let mut pd = JointPd {
         gains: PdGains::default(),
         targets: robot.standing_pose(),

@@ -39,7 +39,7 @@ use eemp_core::planner::params::{table_i, TABLE_I_RANGES};
 use eemp_core::planner::params_table::ParamsTable;
 use eemp_core::planner::{FreePairing, Gait, PlannerConfig, PlannerParams, VelocityCommand};
 use eemp_core::robot::RobotConfig;
-use eemp_sim::closed_loop::{ClosedLoop, EpisodeEnd, FallLimits, Push, StepRecord};
+use eemp_sim::closed_loop::{ClosedLoop, EpisodeEnd, Push, StepRecord};
 use eemp_sim::terrain::{FrictionPatch, Rough, Terrain};
 use eemp_sim::walk::{
     eemp_controller, observe_metrics, reset_to_start, simulated_world, ModelError, StartPose,
@@ -895,7 +895,7 @@ impl EempRlEnv {
             mass_kg: simulated.total_mass_kg(),
             kin: LegKinematics::new(robot),
             q0: robot.standing_pose(),
-            loop_: ClosedLoop::new(sim, &[], FallLimits::default()),
+            loop_: ClosedLoop::new(sim, &[], robot.scale()),
             controller,
             command: VelocityCommand::default(),
             prev_action: config.initial_action(),

@@ -27,7 +27,7 @@ use eemp_core::leg::{Leg, LegMap};
 use eemp_core::planner::VelocityCommand;
 use eemp_core::robot::RobotConfig;
 use eemp_sim::backend::SimSnapshot;
-use eemp_sim::closed_loop::{ClosedLoop, FallLimits};
+use eemp_sim::closed_loop::ClosedLoop;
 use eemp_sim::walk::StartPose;
 use eemp_sim::Simulation;
 use mujoco_rs::prelude::MjModel;
@@ -445,7 +445,7 @@ impl ImitationEnv {
         let agent = ImitationAgent::new(config, motion, robot);
         Ok(ImitationEnv {
             foot_radius_m: robot.leg.foot_radius_m,
-            loop_: ClosedLoop::new(sim, &[], FallLimits::default()),
+            loop_: ClosedLoop::new(sim, &[], robot.scale()),
             pd: JointPd {
                 gains: agent.config.pd.clone(),
                 targets: agent.q0,

@@ -19,7 +19,7 @@ use eemp_core::leg::{Leg, LegMap};
 use eemp_core::planner::VelocityCommand;
 use eemp_core::robot::RobotConfig;
 use eemp_sim::backend::{build_model, SimSnapshot};
-use eemp_sim::closed_loop::{ClosedLoop, EpisodeEnd, FallLimits, Push};
+use eemp_sim::closed_loop::{ClosedLoop, EpisodeEnd, Push};
 use eemp_sim::mjcf::SceneExtras;
 use eemp_sim::walk::StartPose;
 use eemp_sim::Simulation;
@@ -875,7 +875,7 @@ impl ModelFreeEnv {
             kin,
             foot_radius_m: robot.leg.foot_radius_m,
             q0,
-            loop_: ClosedLoop::new(sim, &[], FallLimits::default()),
+            loop_: ClosedLoop::new(sim, &[], robot.scale()),
             pd: JointPd {
                 gains: config.pd.clone(),
                 targets: q0,
