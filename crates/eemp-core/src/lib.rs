@@ -35,6 +35,7 @@ pub mod joint_pd;
 pub mod kinematics;
 pub mod leg;
 pub mod leg_control;
+pub mod leg_geometry;
 pub mod locomotion;
 pub mod metrics;
 pub mod pipeline;

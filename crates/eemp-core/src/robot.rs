@@ -48,9 +48,9 @@ pub struct ModelDescription {
     /// What the binding changes in the model for torque control.
     pub edits: ModelEdits,
     /// Each leg's geometry at zero joint angles.
-    pub legs: LegMap<crate::kinematics::LegGeometry>,
+    pub legs: LegMap<crate::leg_geometry::LegGeometry>,
     /// Each leg's links (abduction, thigh, calf: every body that moves with that joint), in the
-    /// link frames of [`crate::kinematics::LegKinematics::link_frames`].
+    /// link frames of `kinematics::LegKinematics::link_frames`.
     pub links: LegMap<[LinkInertial; 3]>,
     /// Each leg's joint ranges (abduction, thigh, calf), rad.
     pub joint_range_rad: LegMap<[[f64; 2]; 3]>,
@@ -392,7 +392,7 @@ pub struct RobotScale {
 }
 
 impl RobotScale {
-    /// The factor on a quantity of `unit` (as [`crate::settings_keys::KeyDoc::unit`] writes
+    /// The factor on a quantity of `unit` (as `settings_keys::KeyDoc::unit` writes
     /// it: products of m, kg, s, N, W and rad with `·`, `/` and powers ², ³); `None` for a unit
     /// that is not a physical dimension (`1`, `bool`, `count`, `steps`, an enum's "").
     pub fn factor(&self, unit: &str) -> Option<f64> {
@@ -662,12 +662,12 @@ impl RobotConfig {
     }
 
     /// The geometry of `leg`: the model's, or the Unitree leg the file types.
-    pub fn leg_geometry(&self, leg: Leg) -> crate::kinematics::LegGeometry {
+    pub fn leg_geometry(&self, leg: Leg) -> crate::leg_geometry::LegGeometry {
         match &self.model {
             Some(m) => m.legs[leg].clone(),
             None => {
                 let l = &self.leg;
-                crate::kinematics::LegGeometry::unitree(
+                crate::leg_geometry::LegGeometry::unitree(
                     leg,
                     l.hip_offset_m,
                     l.abduction_to_thigh_m,

@@ -1,4 +1,4 @@
-//! What each key of the settings tree ([`crate::settings`]) means: its unit, the range its
+//! What each key of the settings tree (`settings`) means: its unit, the range its
 //! struct's `validate()` allows, and what it does, one [`KeyDoc`] per leaf key (nested structs
 //! dotted, `planner.gait` left out: a run's gait is not a setting). Option fields that are
 //! absent from the tree while unset are listed too.
@@ -31,7 +31,7 @@ const fn k(
     }
 }
 
-/// Every key of the settings tree, table by table ([`crate::settings::TABLES`]), in the order the
+/// Every key of the settings tree, table by table (`settings::TABLES`), in the order the
 /// structs declare their fields.
 pub const KEYS: &[KeyDoc] = &[
     // planner: PlannerConfig

@@ -56,9 +56,9 @@ fn world(robot: &RobotConfig, extras: &SceneExtras) -> String {
     )
 }
 
-/// The floor and terrain around a robot read from its own model ([`crate::robot_model`]),
+/// The floor and terrain around a robot read from its own model (`robot_model`),
 /// with no robot: attached into the robot's world, which gets the options and IMU sensors
-/// ([`crate::backend::build_model`]).
+/// (`backend::build_model`).
 pub fn scene_without_robot(robot: &RobotConfig, extras: &SceneExtras) -> String {
     format!(
         r#"<mujoco model="scene">
@@ -75,7 +75,7 @@ pub fn scene_without_robot(robot: &RobotConfig, extras: &SceneExtras) -> String 
 
 /// The MJCF text of `robot` standing on a flat floor, plus `extras`, generated from its file.
 /// A robot read from its own model is compiled from that model instead
-/// ([`crate::backend::build_model`]); for it this is the scene without the robot.
+/// (`backend::build_model`); for it this is the scene without the robot.
 pub fn robot_mjcf(robot: &RobotConfig, extras: &SceneExtras) -> String {
     if robot.model.is_some() {
         return scene_without_robot(robot, extras);

@@ -15,7 +15,7 @@
 //!   `FL_foot`, …), and an IMU site sits at the trunk's origin.
 //!
 //! The floor, terrain, contact options and sensors are the scene's, as for every robot
-//! ([`crate::mjcf`]).
+//! (`mjcf`).
 
 use eemp_core::config_error::ConfigError;
 use eemp_core::energy::MotorConfig;
