@@ -19,8 +19,8 @@
 
 use eemp_core::config_error::ConfigError;
 use eemp_core::energy::MotorConfig;
-use eemp_core::kinematics::LegGeometry;
 use eemp_core::leg::{Leg, LegMap};
+use eemp_core::leg_geometry::LegGeometry;
 use eemp_core::robot::{
     fnv1a64, ControlDefaults, LegConfig, LinkConfig, LinkInertial, ModelDescription, ModelEdits,
     RobotConfig, SdkConfig, SimulationConfig, TrunkConfig,
