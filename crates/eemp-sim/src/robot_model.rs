@@ -11,6 +11,8 @@
 //! - joint damping, armature and friction loss become the binding's (a model's damping is often
 //!   a tuning for its position servos);
 //! - its sensors and keyframes are removed (the scene has the IMU; the runs set the poses);
+//! - its geoms' contact priority is 0, so the floor's and the terrain's friction, contact
+//!   dimension and softness govern every contact, as for the typed robots;
 //! - the trunk, legs, joints, feet and motors take the project's names (`trunk`, `FL_hip_joint`,
 //!   `FL_foot`, …), and an IMU site sits at the trunk's origin.
 //!
@@ -487,6 +489,14 @@ fn rename_and_motorise(
     // trunk's origin, where the estimator assumes it.
     if let Some(site) = spec.site_mut("imu") {
         site.set_name("model_imu").map_err(|e| e.to_string())?;
+    }
+    // The contact is the scene's: the floor's and the terrain's priority must win. A model's own
+    // priority mixes its geoms' parameters with the floor's (equal priorities take the larger
+    // friction and contact dimension and average solref/solimp): the A2's feet (priority 1,
+    // friction 1.3, condim 6) walked the 0.3 floor on 1.3, Spot's kept rolling friction and
+    // their own 4 ms contact stiffness.
+    for g in spec.geom_iter_mut() {
+        g.set_priority(0);
     }
     let mut added_trunk_box = false;
     {

@@ -127,3 +127,25 @@ fn the_b2_gets_its_own_fall_height_loaded_foot_force_and_command_ranges() {
         FALL_MIN_HEIGHT.a1_value
     );
 }
+
+/// The scene's contact governs: a model's own geom priority (the A2's feet: priority 1, friction
+/// 1.3, condim 6) would mix with the floor's and keep its friction on a slippery floor.
+#[test]
+fn the_floor_not_the_model_sets_the_contact() {
+    use eemp_sim::mjcf::SceneExtras;
+    let robot = load_robot(&repo("robots/a2.toml")).unwrap();
+    let model = eemp_sim::backend::build_model(&robot, &SceneExtras::default()).unwrap();
+    let floor = (0..model.ffi().ngeom as usize)
+        .find(|&g| model.geom_bodyid()[g] == 0 && model.geom_priority()[g] > 0)
+        .expect("the floor has contact priority");
+    let floor_priority = model.geom_priority()[floor];
+    for g in 0..model.ffi().ngeom as usize {
+        if model.geom_bodyid()[g] != 0 {
+            assert!(
+                model.geom_priority()[g] < floor_priority,
+                "robot geom {g} has priority {} against the floor's {floor_priority}",
+                model.geom_priority()[g]
+            );
+        }
+    }
+}
