@@ -185,14 +185,18 @@ fn link_json(t: &Transport) -> serde_json::Value {
 pub fn run_hw_cmd(args: &HwArgs) -> Result<(), String> {
     let robot = args.robot.load()?;
     let link = args.link.resolve(&robot, ROBOT_DOMAIN_ID, None)?;
+    // Defaults and caps scaled to the robot's size (the A1's own values on the A1).
+    let size = robot.scale();
     let safety: SafetyConfig = match &args.safety {
-        Some(p) => eemp_core::config_error::load_toml(p).map_err(|e| e.to_string())?,
-        None => SafetyConfig::default(),
+        Some(p) => SafetyConfig::load_for(p, &size).map_err(|e| e.to_string())?,
+        None => SafetyConfig::for_size(&size),
     };
+    let speed = size.factor("m/s").unwrap_or(1.0);
+    let rate = size.factor("rad/s").unwrap_or(1.0);
     for (name, v, lo, hi) in [
-        ("--speed", args.speed, -1.5, 1.5),
-        ("--lateral", args.lateral, -1.0, 1.0),
-        ("--yaw-rate", args.yaw_rate, -2.0, 2.0),
+        ("--speed", args.speed, -1.5 * speed, 1.5 * speed),
+        ("--lateral", args.lateral, -1.0 * speed, 1.0 * speed),
+        ("--yaw-rate", args.yaw_rate, -2.0 * rate, 2.0 * rate),
     ] {
         if !(v.is_finite() && (lo..=hi).contains(&v)) {
             return Err(format!("{name} {v} is out of range: allowed [{lo}, {hi}]"));

@@ -12,7 +12,7 @@
 
 use crate::config_error::{check_range, ConfigError};
 use crate::leg::{Leg, LegMap};
-use crate::robot::RobotConfig;
+use crate::robot::{RobotConfig, RobotScale};
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
@@ -93,20 +93,81 @@ impl Default for SafetyConfig {
     }
 }
 
+/// Units of the fields scaled to a robot's size ([`SafetyConfig::for_size`]): the defaults and
+/// the validation caps were chosen for the A1. The watchdog is a rate of the link and the joint
+/// margin an angle: neither is scaled.
+const POWER_UNIT: &str = "W";
+const KP_UNIT: &str = "N·m/rad";
+const KD_UNIT: &str = "N·m·s/rad";
+const TORQUE_UNIT: &str = "N·m";
+
 impl SafetyConfig {
+    /// The defaults for a robot of size `size`: the A1's (its own, exactly, at λ = μ = 1) scaled
+    /// by unit at equal Froude number (power × μ√λ, stiffness × μλ, damping × μλ^1.5, the soft
+    /// start's time × √λ).
+    pub fn for_size(size: &RobotScale) -> Self {
+        let f = |unit: &str| size.factor(unit).unwrap_or(1.0);
+        let a1 = SafetyConfig::default();
+        SafetyConfig {
+            power_limit_w: a1.power_limit_w * f(POWER_UNIT),
+            soft_start_s: a1.soft_start_s * f("s"),
+            soft_start_kp: a1.soft_start_kp * f(KP_UNIT),
+            soft_start_kd: a1.soft_start_kd * f(KD_UNIT),
+            damping_kd: a1.damping_kd * f(KD_UNIT),
+            max_kp: a1.max_kp * f(KP_UNIT),
+            max_kd: a1.max_kd * f(KD_UNIT),
+            ..a1
+        }
+    }
+
+    /// A safety file for a robot of size `size`: the keys it sets over [`SafetyConfig::for_size`]
+    /// (a key it leaves out is the robot's default, not the A1's), validated for that size.
+    pub fn load_for(path: &std::path::Path, size: &RobotScale) -> Result<Self, ConfigError> {
+        let file: toml::Table = crate::config_error::load_toml(path)?;
+        let mut tree = toml::Table::try_from(SafetyConfig::for_size(size)).map_err(|e| {
+            ConfigError::Invalid {
+                name: "safety".into(),
+                message: e.to_string(),
+            }
+        })?;
+        tree.extend(file);
+        let config: SafetyConfig =
+            toml::Value::Table(tree)
+                .try_into()
+                .map_err(|e: toml::de::Error| ConfigError::Parse {
+                    path: path.to_path_buf(),
+                    message: e.to_string(),
+                })?;
+        config.validate_for(size)?;
+        Ok(config)
+    }
+
+    /// Validated against the A1's caps.
     pub fn validate(&self) -> Result<(), ConfigError> {
+        self.validate_for(&RobotScale::A1)
+    }
+
+    /// Validated against the caps of a robot of size `size` (the A1's scaled by unit: a B2's
+    /// motors and power exceed the A1's caps many times).
+    pub fn validate_for(&self, size: &RobotScale) -> Result<(), ConfigError> {
+        let f = |unit: &str| size.factor(unit).unwrap_or(1.0);
         check_range("safety.watchdog_s", self.watchdog_s, 0.001, 1.0)?;
-        check_range("safety.power_limit_w", self.power_limit_w, 1.0, 2000.0)?;
+        check_range(
+            "safety.power_limit_w",
+            self.power_limit_w,
+            1.0,
+            2000.0 * f(POWER_UNIT),
+        )?;
         check_range("safety.soft_start_s", self.soft_start_s, 0.0, 30.0)?;
         check_range("safety.soft_start_kp", self.soft_start_kp, 0.0, self.max_kp)?;
         check_range("safety.soft_start_kd", self.soft_start_kd, 0.0, self.max_kd)?;
-        check_range("safety.damping_kd", self.damping_kd, 0.0, 20.0)?;
+        check_range("safety.damping_kd", self.damping_kd, 0.0, 20.0 * f(KD_UNIT))?;
         if let Some(t) = self.torque_limit_nm {
-            check_range("safety.torque_limit_nm", t, 0.0, 200.0)?;
+            check_range("safety.torque_limit_nm", t, 0.0, 200.0 * f(TORQUE_UNIT))?;
         }
         check_range("safety.joint_margin_rad", self.joint_margin_rad, 0.0, 0.3)?;
-        check_range("safety.max_kp", self.max_kp, 0.0, 1000.0)?;
-        check_range("safety.max_kd", self.max_kd, 0.0, 100.0)
+        check_range("safety.max_kp", self.max_kp, 0.0, 1000.0 * f(KP_UNIT))?;
+        check_range("safety.max_kd", self.max_kd, 0.0, 100.0 * f(KD_UNIT))
     }
 }
 
@@ -174,7 +235,7 @@ fn damping(kd: f64) -> RobotCommand {
 
 impl SafetyLayer {
     pub fn new(robot: &RobotConfig, config: SafetyConfig) -> Result<Self, ConfigError> {
-        config.validate()?;
+        config.validate_for(&robot.scale())?;
         let l = &robot.leg;
         Ok(SafetyLayer {
             ranges: LegMap::from_fn(|leg| robot.joint_ranges_rad(leg)),
@@ -350,6 +411,48 @@ impl SafetyLayer {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_defaults_and_caps_follow_the_robots_size() {
+        assert_eq!(
+            SafetyConfig::for_size(&RobotScale::A1),
+            SafetyConfig::default()
+        );
+        // λ = 4, μ = 8: power × 8·2, stiffness × 32, damping × 64, time × 2.
+        let big = RobotScale {
+            length: 4.0,
+            mass: 8.0,
+        };
+        let c = SafetyConfig::for_size(&big);
+        assert!((c.power_limit_w - 500.0 * 16.0).abs() < 1e-9);
+        assert!((c.soft_start_kp - 40.0 * 32.0).abs() < 1e-9);
+        assert!((c.damping_kd - 3.0 * 64.0).abs() < 1e-9);
+        assert!((c.soft_start_s - 4.0).abs() < 1e-12);
+        assert_eq!(c.watchdog_s, SafetyConfig::default().watchdog_s);
+        c.validate_for(&big).unwrap();
+        // The A1's caps refuse it, naming the key.
+        let err = c.validate().unwrap_err().to_string();
+        assert!(err.contains("safety.power_limit_w"), "{err}");
+    }
+
+    #[test]
+    fn a_safety_file_sets_only_its_keys_over_the_robots_defaults() {
+        let big = RobotScale {
+            length: 4.0,
+            mass: 8.0,
+        };
+        let dir = std::env::temp_dir().join(format!("eemp-safety-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("safety.toml");
+        std::fs::write(&path, "watchdog_s = 0.05\n").unwrap();
+        let c = SafetyConfig::load_for(&path, &big).unwrap();
+        assert_eq!(c.watchdog_s, 0.05);
+        assert_eq!(c.power_limit_w, SafetyConfig::for_size(&big).power_limit_w);
+        std::fs::write(&path, "watchdog_ms = 5\n").unwrap();
+        let err = SafetyConfig::load_for(&path, &big).unwrap_err().to_string();
+        assert!(err.contains("watchdog_ms"), "{err}");
+        std::fs::remove_dir_all(&dir).ok();
+    }
 
     fn state(t: f64, q: f64, dq: f64, tau: f64) -> MeasuredJoints {
         MeasuredJoints {
