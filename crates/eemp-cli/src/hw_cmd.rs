@@ -195,7 +195,7 @@ pub fn run_hw_cmd(args: &HwArgs) -> Result<(), String> {
     let rate = size.factor("rad/s").unwrap_or(1.0);
     for (name, v, lo, hi) in [
         ("--speed", args.speed, -1.5 * speed, 1.5 * speed),
-        ("--lateral", args.lateral, -1.0 * speed, 1.0 * speed),
+        ("--lateral", args.lateral, -speed, speed),
         ("--yaw-rate", args.yaw_rate, -2.0 * rate, 2.0 * rate),
     ] {
         if !(v.is_finite() && (lo..=hi).contains(&v)) {
