@@ -144,6 +144,14 @@ pub fn edited_spec(source: &Path, edits: &ModelEdits) -> Result<(MjSpec, [f64; 3
     let mut spec = MjSpec::from_xml(source).map_err(|e| model_err(&e))?;
     strip_visual_meshes(&mut spec, source.parent().unwrap_or(Path::new(".")))
         .map_err(|m| invalid("model.file", m))?;
+    // Geoms are found again by name after the first compile (the foot takes the project's
+    // name); Menagerie leaves its collision geoms unnamed.
+    for (i, g) in spec.geom_iter_mut().enumerate() {
+        if g.name().is_empty() {
+            g.set_name(&format!("model_geom_{i}"))
+                .map_err(|e| invalid("model.file", e.to_string()))?;
+        }
+    }
     // The model as shipped (less its visuals): its actuators say the torque limits.
     let original = spec.compile().map_err(|e| model_err(&e))?;
     let (trunk, legs) = find_legs(&original)?;

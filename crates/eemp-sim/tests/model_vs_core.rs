@@ -42,22 +42,29 @@ fn set_pose(
     sim.data_mut().forward();
 }
 
-/// Every robot the project ships, typed into its file or read from its own model.
-const SHIPPED_ROBOTS: [&str; 8] = [
-    "a1",
-    "go1",
-    "go2",
-    "b2",
-    "aliengo",
-    "a2",
-    "mini_cheetah",
-    "spot",
-];
+/// Every robot the project ships (`robots/*.toml`), typed into its file or read from its own
+/// model: a robot added there is checked here without a list to keep.
+fn shipped_robots() -> Vec<String> {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../robots");
+    let mut names: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .filter_map(|e| {
+            let p = e.unwrap().path();
+            match p.extension().is_some_and(|x| x == "toml") {
+                true => p.file_stem().map(|s| s.to_string_lossy().into_owned()),
+                false => None,
+            }
+        })
+        .collect();
+    names.sort();
+    assert!(names.len() >= 9, "robots/ lists {names:?}");
+    names
+}
 
 #[test]
 fn foot_positions_and_jacobians_match_mujoco_on_every_shipped_robot() {
-    for name in SHIPPED_ROBOTS {
-        let robot = robot_file(name);
+    for name in shipped_robots() {
+        let robot = robot_file(&name);
         let kin = LegKinematics::new(&robot);
         let mut sim = Simulation::new(&robot, &SceneExtras::default()).unwrap();
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
@@ -169,8 +176,8 @@ fn leg_dynamics_match_mujoco_inverse_dynamics() {
 
 #[test]
 fn composite_body_matches_mujoco_mass_com_and_inertia_on_every_shipped_robot() {
-    for name in SHIPPED_ROBOTS {
-        let robot = robot_file(name);
+    for name in shipped_robots() {
+        let robot = robot_file(&name);
         let mut sim = Simulation::new(&robot, &SceneExtras::default()).unwrap();
         let q = robot.standing_pose();
         sim.reset(Vector3::new(0.0, 0.0, 1.0), &q);
@@ -322,7 +329,7 @@ fn robot_file(name: &str) -> RobotConfig {
 #[test]
 fn the_go2_and_go1_models_carry_their_per_joint_limits_and_match_the_core_kinematics() {
     for name in ["go2", "go1"] {
-        let robot = robot_file(name);
+        let robot = robot_file(&name);
         let xml = eemp_sim::mjcf::robot_mjcf(&robot, &SceneExtras::default());
         let [_, _, knee] = robot.leg.torque_limit_nm;
         assert!(
