@@ -329,7 +329,7 @@ fn robot_file(name: &str) -> RobotConfig {
 #[test]
 fn the_go2_and_go1_models_carry_their_per_joint_limits_and_match_the_core_kinematics() {
     for name in ["go2", "go1"] {
-        let robot = robot_file(&name);
+        let robot = robot_file(name);
         let xml = eemp_sim::mjcf::robot_mjcf(&robot, &SceneExtras::default());
         let [_, _, knee] = robot.leg.torque_limit_nm;
         assert!(
