@@ -64,7 +64,8 @@ impl VelocityProfile {
     }
 
     /// The profile's structure and its commands within `ranges` (forward m/s, lateral m/s,
-    /// yaw rate rad/s, each [min, max]: the robot's, [`RobotScale::command_ranges`]).
+    /// yaw rate rad/s, each [min, max]: the robot's,
+    /// [`eemp_core::robot::RobotScale::command_ranges`]).
     pub fn validate_within(&self, ranges: [[f64; 2]; 3]) -> Result<(), ConfigError> {
         if self.segments.is_empty() {
             return Err(ConfigError::Invalid {
