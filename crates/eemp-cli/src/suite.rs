@@ -511,27 +511,38 @@ impl SuiteConfig {
         Ok(())
     }
 
-    /// A scenario's speeds as run: × √λ when `speeds_scale_with_robot` (rounded to the
-    /// millimetre per second that run ids and tables print), else as written.
-    pub fn scenario_speeds(&self, s: &ScenarioConfig) -> Result<Vec<f64>, String> {
-        let speeds = s.speeds()?;
-        if !self.speeds_scale_with_robot {
-            return Ok(speeds);
-        }
-        let factor = crate::robot_arg::load_robot(self.robot.as_deref())?
-            .scale()
-            .length
-            .sqrt();
-        Ok(speeds
-            .into_iter()
-            .map(|v| (v * factor * 1000.0).round() / 1000.0)
-            .collect())
+    /// Every scenario's speeds as run, in the scenarios' order: × √λ when
+    /// `speeds_scale_with_robot` (rounded to the millimetre per second that run ids and tables
+    /// print; the robot is loaded once), else as written.
+    pub fn scenario_speeds(&self) -> Result<Vec<Vec<f64>>, String> {
+        let factor = match self.speeds_scale_with_robot {
+            true => Some(
+                crate::robot_arg::load_robot(self.robot.as_deref())?
+                    .scale()
+                    .length
+                    .sqrt(),
+            ),
+            false => None,
+        };
+        self.scenarios
+            .iter()
+            .map(|s| {
+                let speeds = s.speeds()?;
+                Ok(match factor {
+                    Some(f) => speeds
+                        .into_iter()
+                        .map(|v| (v * f * 1000.0).round() / 1000.0)
+                        .collect(),
+                    None => speeds,
+                })
+            })
+            .collect()
     }
 
     pub fn runs(&self) -> Result<Vec<SuiteRun>, String> {
         let mut runs = Vec::new();
-        for (si, s) in self.scenarios.iter().enumerate() {
-            for v in self.scenario_speeds(s)? {
+        for (si, speeds) in self.scenario_speeds()?.into_iter().enumerate() {
+            for v in speeds {
                 for mi in 0..self.methods.len() {
                     for &seed in &self.seeds {
                         runs.push(SuiteRun {

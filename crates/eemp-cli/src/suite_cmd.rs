@@ -696,7 +696,7 @@ pub fn compare(args: &SuiteArgs) -> Result<(), String> {
     };
     let cells = aggregate(&rows);
     let scen = cfg.scenarios[0].name.clone();
-    let speeds: Vec<f64> = cfg.scenario_speeds(&cfg.scenarios[0])?;
+    let speeds: Vec<f64> = cfg.scenario_speeds()?.swap_remove(0);
     let key = |m: &str, v: f64| (m.to_string(), scen.clone(), (v * 1000.0).round() as i64);
     // Fig. 7: three panels against speed, one line per method, min–max over seeds shaded.
     let metric = |name: &str, unit: &str, f: fn(&Cell) -> &Stat| {
@@ -1097,8 +1097,7 @@ pub fn robustness(args: &SuiteArgs) -> Result<(), String> {
     // One category per scenario and speed.
     let mut cats: Vec<(String, f64)> = Vec::new();
     let mut speed_count = std::collections::HashMap::new();
-    for s in &cfg.scenarios {
-        let speeds = cfg.scenario_speeds(s)?;
+    for (s, speeds) in cfg.scenarios.iter().zip(cfg.scenario_speeds()?) {
         speed_count.insert(s.name.clone(), speeds.len());
         for v in speeds {
             cats.push((s.name.clone(), v));

@@ -26,12 +26,10 @@ use toml::Value;
 pub const TABLES: [&str; 6] = ["planner", "mpc", "swing", "slip", "schedule", "filter"];
 
 /// Keys [`ControllerSettings::scaled`] leaves as they are, though they have a unit:
-/// - how often the MPC solves is a control rate, not a property of the robot's motion. Slowed
-///   by √λ for a larger robot it let Spot's trunk (light in roll for its size) oscillate off its
-///   feet in 0.5 s of standing; kept at the A1's, Spot stands and walks;
-/// - the filter's foot height is the robot's own foot radius already (`StateSource::kf`):
-///   scaled once more it put the B2's feet 2.4 cm too low, and the filter's trunk 5 cm too
-///   high and its velocity 0.17 m/s off while standing.
+/// - how often the MPC solves is a control rate of the computer, not a property of the robot's
+///   motion (a slower rate lets a trunk light in roll for its size oscillate off its feet);
+/// - the filter's foot height is already the robot's own foot radius (`StateSource::kf`):
+///   scaling it again would put the feet, and so the filter's trunk, at the wrong height.
 pub const UNSCALED_KEYS: [&str; 2] = ["schedule.mpc_period_s", "filter.foot_height_m"];
 
 /// The settings a run controls itself with: planner, controller, and (on the filter) the

@@ -500,9 +500,8 @@ fn rename_and_motorise(
     }
     // The contact is the scene's: the floor's and the terrain's priority must win. A model's own
     // priority mixes its geoms' parameters with the floor's (equal priorities take the larger
-    // friction and contact dimension and average solref/solimp): the A2's feet (priority 1,
-    // friction 1.3, condim 6) walked the 0.3 floor on 1.3, Spot's kept rolling friction and
-    // their own 4 ms contact stiffness.
+    // friction and contact dimension and average solref/solimp), so a slippery floor would keep
+    // the feet's own friction.
     for g in spec.geom_iter_mut() {
         g.set_priority(0);
     }
